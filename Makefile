@@ -1,0 +1,45 @@
+# daskrad — `make help` lists the targets.
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+SCENE ?= scenes/cornell_box.obj
+OUT ?= out/cornell_box.exr
+WORKERS ?= 0
+
+.DEFAULT_GOAL := help
+.PHONY: help install test lint bench stress run clean
+
+help: ## list the targets
+	@grep -E '^[a-z]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-9s %s\n", $$1, $$2}'
+
+# The venv is rebuilt when pyproject.toml changes (the stamp is older than it).
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install -q --upgrade pip
+	$(BIN)/pip install -q -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP) ## create .venv and install daskrad (editable) with test tools
+
+test: $(STAMP) ## run the test suite (fast cases; the long stress cases are `make stress`)
+	$(BIN)/python -m pytest -q -m "not slow"
+
+lint: $(STAMP) ## ruff and the import-linter layering contracts
+	$(BIN)/ruff check daskrad tests benchmarks
+	$(BIN)/lint-imports
+
+bench: $(STAMP) ## run the benchmarks; tables on stdout, JSON in benchmarks/results/
+	$(BIN)/python -m benchmarks
+
+stress: $(STAMP) ## the numerical stress suite, long cases included
+	$(BIN)/python -m pytest -q tests/test_stress.py
+
+run: $(STAMP) ## render the bundled Cornell box (SCENE=, OUT=, WORKERS= to change)
+	mkdir -p $(dir $(OUT))
+	$(BIN)/daskrad run $(SCENE) -o $(OUT) --workers $(WORKERS)
+
+clean: ## remove the venv, caches and outputs
+	rm -rf $(VENV) out .pytest_cache .hypothesis
+	find . -name __pycache__ -type d -prune -exec rm -rf {} +

@@ -1,0 +1,5 @@
+import sys
+
+from daskrad.cli import main
+
+sys.exit(main())

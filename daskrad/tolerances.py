@@ -1,0 +1,25 @@
+"""Every numerical tolerance of daskrad, in one place.
+
+Tolerances that depend on geometry are *relative to the scene's size* (the diagonal of its
+bounding box), never fixed epsilons, so a scene in millimetres and the same scene in
+kilometres behave the same (issue 7).
+"""
+
+#: A face whose area is below ``DEGENERATE_AREA * diag**2`` is dropped as degenerate.
+DEGENERATE_AREA = 1e-14
+
+#: A quad is kept as a quad when its fourth corner lies within ``PLANAR_QUAD * diag`` of the
+#: plane through the other three; otherwise it is split into two triangles.
+PLANAR_QUAD = 1e-9
+
+#: Shadow and secondary rays start ``RAY_OFFSET * diag`` off the surface along its normal.
+RAY_OFFSET = 1e-7
+
+#: Rays hit triangles within ``RAY_EPS * diag`` of an edge (watertightness across shared edges).
+RAY_EPS = 1e-12
+
+#: Relative tolerance with which area sums are checked at every level of the hierarchy.
+AREA_SUM_RTOL = 1e-9
+
+#: Default threshold angle (degrees) a polyline piece of a projected edge may subtend (eq. 4).
+EDGE_ANGLE_DEG = 1.0
