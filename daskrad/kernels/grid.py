@@ -1,0 +1,520 @@
+"""The uniform voxel grid for rays (DESIGN §1 step 1; issue 2, item 5).
+
+Every triangle is registered in each cell of a uniform grid it overlaps (exact triangle–box
+overlap by the separating-axis theorem, Akenine-Möller 2001, on a box enlarged by a small
+margin), stored as CSR: ``cell_items[cell_start[c]:cell_start[c + 1]]`` are the triangle ids of
+cell ``c = (k * ny + j) * nx + i`` (x fastest), ids increasing. Rays walk the grid by 3-D DDA
+(Amanatides & Woo 1987) and test each triangle of a cell with Möller–Trumbore in float64 with
+an edge tolerance of ``eps`` (an absolute length), so a ray through a shared edge or vertex
+hits at least one of the triangles that share it.
+
+Invariants the traversal relies on:
+
+- a triangle is registered in every cell that contains a point within ``margin`` of it, where
+  ``margin`` (> 2 ``eps`` plus rounding of the coordinates) covers both the edge tolerance and
+  the rounding of the DDA's cell boundaries, so a hit point always lies in a cell the DDA
+  visits and whose list holds the triangle;
+- a closest hit found in a cell is accepted only when its ``t`` is no later than the cell's
+  exit ``t``; otherwise the walk continues with ``t`` as the upper bound (a triangle of a later
+  cell may be closer: the classic grid bug);
+- both sides of a triangle count; ``tmin < t < tmax`` strictly; a ray lying in a triangle's
+  plane does not hit it.
+
+The single-ray functions (:func:`closest_hit_one`, :func:`any_hit_one`) are ``@jit`` so other
+kernels call them inside their own numba loops; the batch functions wrap them for arrays of
+rays; the ``*_brute`` functions test every triangle and are the reference for tests.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from daskrad.kernels._jit import jit
+
+#: Largest number of cells along one axis.
+MAX_DIM = 512
+
+#: Default cells per triangle (λ in the classic heuristic cells ≈ λ·T); chosen by
+#: benchmarks/bench_grid.py as the fastest closest-hit setting on surface-like scenes.
+DEFAULT_DENSITY = 2.0
+
+#: The grid's box is the scene's box padded by this fraction of the scene diagonal on every
+#: side: a flat scene (zero extent on an axis) then still has a box of positive volume, and no
+#: vertex lies on the box's boundary.
+_BOX_PAD = 1e-6
+
+#: Triangles are registered in cells enlarged by this fraction of the scene diagonal (plus
+#: 2·eps and rounding of the coordinates): far larger than the rounding of a DDA cell boundary
+#: (~1e-16 of the coordinates' magnitude), far smaller than any cell.
+_REG_MARGIN = 1e-9
+
+#: Rounding of a coordinate, relative to the largest coordinate magnitude (a few ulps), for
+#: scenes far from the origin where coordinate rounding dominates the diagonal-relative margin.
+_COORD_ROUND = 1e-14
+
+
+class Grid(NamedTuple):
+    """A uniform voxel grid over a triangle soup.
+
+    origin : (3,) float64
+        The grid's lower corner.
+    cell : (3,) float64
+        Cell size per axis.
+    dims : (3,) int64
+        Cells per axis ``(nx, ny, nz)``; ``C = nx * ny * nz``.
+    cell_start : (C + 1,) int64
+        CSR offsets into ``cell_items``; cell ``c = (k * ny + j) * nx + i``.
+    cell_items : (K,) int32
+        Triangle ids, increasing within a cell.
+    triangles : (T, 3, 3) float64
+        The triangles' vertices.
+    eps : float
+        Absolute edge tolerance of the ray–triangle test, ``rel_eps * diag``.
+    """
+
+    origin: np.ndarray
+    cell: np.ndarray
+    dims: np.ndarray
+    cell_start: np.ndarray
+    cell_items: np.ndarray
+    triangles: np.ndarray
+    eps: float
+
+
+# ------------------------------------------------------------------------------------------
+# Registration: separating-axis triangle–box overlap.
+
+
+@jit
+def _separated(ax, ay, az, p0x, p0y, p0z, p1x, p1y, p1z, p2x, p2y, p2z, hx, hy, hz):
+    """Whether axis ``a`` separates the triangle ``p`` (box-centred) from the box ``±h``."""
+    if ax == 0.0 and ay == 0.0 and az == 0.0:
+        return False  # degenerate axis (parallel or zero-length edge): proves nothing
+    q0 = ax * p0x + ay * p0y + az * p0z
+    q1 = ax * p1x + ay * p1y + az * p1z
+    q2 = ax * p2x + ay * p2y + az * p2z
+    r = hx * abs(ax) + hy * abs(ay) + hz * abs(az)
+    return min(q0, q1, q2) > r or max(q0, q1, q2) < -r
+
+
+@jit
+def _tri_box_overlap(tri, cx, cy, cz, hx, hy, hz):
+    """Akenine-Möller's test: triangle ``tri (3, 3)`` against the box ``c ± h`` (13 axes)."""
+    p0x = tri[0, 0] - cx
+    p0y = tri[0, 1] - cy
+    p0z = tri[0, 2] - cz
+    p1x = tri[1, 0] - cx
+    p1y = tri[1, 1] - cy
+    p1z = tri[1, 2] - cz
+    p2x = tri[2, 0] - cx
+    p2y = tri[2, 1] - cy
+    p2z = tri[2, 2] - cz
+    # The box's own axes (the triangle's bounding box against the box).
+    if min(p0x, p1x, p2x) > hx or max(p0x, p1x, p2x) < -hx:
+        return False
+    if min(p0y, p1y, p2y) > hy or max(p0y, p1y, p2y) < -hy:
+        return False
+    if min(p0z, p1z, p2z) > hz or max(p0z, p1z, p2z) < -hz:
+        return False
+    # The triangle's plane.
+    f0x, f0y, f0z = p1x - p0x, p1y - p0y, p1z - p0z
+    f1x, f1y, f1z = p2x - p1x, p2y - p1y, p2z - p1z
+    f2x, f2y, f2z = p0x - p2x, p0y - p2y, p0z - p2z
+    nx = f0y * f1z - f0z * f1y
+    ny = f0z * f1x - f0x * f1z
+    nz = f0x * f1y - f0y * f1x
+    if _separated(nx, ny, nz, p0x, p0y, p0z, p1x, p1y, p1z, p2x, p2y, p2z, hx, hy, hz):
+        return False
+    # The nine cross products of a box axis with an edge: e_x × f = (0, -fz, fy), etc.
+    for fx, fy, fz in ((f0x, f0y, f0z), (f1x, f1y, f1z), (f2x, f2y, f2z)):
+        if _separated(0.0, -fz, fy, p0x, p0y, p0z, p1x, p1y, p1z, p2x, p2y, p2z, hx, hy, hz):
+            return False
+        if _separated(fz, 0.0, -fx, p0x, p0y, p0z, p1x, p1y, p1z, p2x, p2y, p2z, hx, hy, hz):
+            return False
+        if _separated(-fy, fx, 0.0, p0x, p0y, p0z, p1x, p1y, p1z, p2x, p2y, p2z, hx, hy, hz):
+            return False
+    return True
+
+
+@jit
+def _cell_range(lo, hi, origin, cell, n):
+    """Indices of the first and last cell along one axis that ``[lo, hi]`` touches."""
+    a = int(np.floor((lo - origin) / cell))
+    b = int(np.floor((hi - origin) / cell))
+    return max(0, min(n - 1, a)), max(0, min(n - 1, b))
+
+
+@jit
+def _register(triangles, origin, cell, dims, margin, exact, cell_start, cell_items, fill):
+    """One pass of the registration: count per cell (``fill`` False) or fill the CSR lists.
+
+    When counting, ``cell_start`` receives the count of cell ``c`` at ``c + 1``; when filling,
+    ``cell_start`` holds the finished offsets and a cursor copy places the ids.
+    """
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    hx = 0.5 * cell[0] + margin
+    hy = 0.5 * cell[1] + margin
+    hz = 0.5 * cell[2] + margin
+    cursor = cell_start[:-1].copy() if fill else cell_start[:0].copy()
+    for t in range(triangles.shape[0]):
+        tri = triangles[t]
+        i0, i1 = _cell_range(tri[:, 0].min() - margin, tri[:, 0].max() + margin,
+                             origin[0], cell[0], nx)
+        j0, j1 = _cell_range(tri[:, 1].min() - margin, tri[:, 1].max() + margin,
+                             origin[1], cell[1], ny)
+        k0, k1 = _cell_range(tri[:, 2].min() - margin, tri[:, 2].max() + margin,
+                             origin[2], cell[2], nz)
+        for k in range(k0, k1 + 1):
+            cz = origin[2] + (k + 0.5) * cell[2]
+            for j in range(j0, j1 + 1):
+                cy = origin[1] + (j + 0.5) * cell[1]
+                for i in range(i0, i1 + 1):
+                    if exact:
+                        cx = origin[0] + (i + 0.5) * cell[0]
+                        if not _tri_box_overlap(tri, cx, cy, cz, hx, hy, hz):
+                            continue
+                    c = (k * ny + j) * nx + i
+                    if fill:
+                        cell_items[cursor[c]] = t
+                        cursor[c] += 1
+                    else:
+                        cell_start[c + 1] += 1
+
+
+def grid_dims(extent: np.ndarray, n_triangles: int, density: float) -> np.ndarray:
+    """Cells per axis: ``≈ density · n_triangles`` cubic-ish cells over a box of ``extent``.
+
+    An axis too thin for one cell of the common size (a flat scene) gets one cell, and the
+    cell budget is spread over the other axes; each axis is clamped to ``[1, MAX_DIM]``.
+
+    Returns (3,) int64.
+    """
+    extent = np.asarray(extent, dtype=np.float64)
+    target = max(1.0, density * n_triangles)
+    dims = np.ones(3, dtype=np.int64)
+    active = extent > 0
+    for _ in range(3):  # at most one axis drops out per round
+        if not active.any():
+            break
+        side = (np.prod(extent[active]) / target) ** (1.0 / active.sum())
+        n = extent / side
+        thin = active & (n < 1.0)
+        if thin.any():
+            active &= ~thin
+            continue
+        dims[active] = np.clip(np.round(n[active]), 1, MAX_DIM).astype(np.int64)
+        break
+    return dims
+
+
+def build_grid(
+    triangles: np.ndarray,
+    rel_eps: float = 1e-12,
+    density: float = DEFAULT_DENSITY,
+    exact: bool = True,
+) -> Grid:
+    """Build the uniform grid over ``triangles``.
+
+    triangles : (T, 3, 3) float64
+        Vertices; finite.
+    rel_eps : float
+        Edge tolerance relative to the scene diagonal (``daskrad.tolerances.RAY_EPS``).
+    density : float
+        Cells per triangle (λ); the grid has about ``density * T`` cells.
+    exact : bool
+        Register by exact triangle–box overlap (True) or by bounding box only (False).
+    """
+    tris = np.ascontiguousarray(triangles, dtype=np.float64)
+    if tris.ndim != 3 or tris.shape[1:] != (3, 3):
+        raise ValueError(f"triangles must have shape (T, 3, 3), not {tris.shape}")
+    if not np.isfinite(tris).all():
+        raise ValueError("triangles must be finite")
+    if len(tris):
+        lo = tris.min(axis=(0, 1))
+        hi = tris.max(axis=(0, 1))
+    else:
+        lo = np.zeros(3)
+        hi = np.zeros(3)
+    diag = float(np.linalg.norm(hi - lo))
+    scale = diag if diag > 0 else 1.0  # a single point: any positive scale will do
+    maxabs = float(np.abs(np.concatenate([lo, hi])).max())
+    eps = rel_eps * scale
+    pad = _BOX_PAD * scale + _COORD_ROUND * maxabs
+    origin = lo - pad
+    extent = (hi + pad) - origin
+    dims = grid_dims(extent, len(tris), density)
+    cell = extent / dims
+    margin = 2.0 * eps + _REG_MARGIN * scale + _COORD_ROUND * maxabs
+    n_cells = int(np.prod(dims))
+    cell_start = np.zeros(n_cells + 1, dtype=np.int64)
+    empty = np.zeros(0, dtype=np.int32)
+    _register(tris, origin, cell, dims, margin, exact, cell_start, empty, False)
+    np.cumsum(cell_start, out=cell_start)
+    cell_items = np.empty(int(cell_start[-1]), dtype=np.int32)
+    _register(tris, origin, cell, dims, margin, exact, cell_start, cell_items, True)
+    return Grid(origin, cell, dims, cell_start, cell_items, tris, float(eps))
+
+
+# ------------------------------------------------------------------------------------------
+# Ray–triangle test.
+
+
+@jit
+def _intersect(tri, ox, oy, oz, dx, dy, dz, tmin, tmax, eps):
+    """Möller–Trumbore with an edge tolerance: ``(hit, t, u, v)`` for ``tmin < t < tmax``.
+
+    A hit point outside the triangle by at most ``eps`` (distance in its plane from the
+    nearest edge line) still counts: the barycentric of the vertex opposite an edge is the
+    distance from that edge's line over the triangle's height there, ``|n| / |edge|``.
+    """
+    v0x, v0y, v0z = tri[0, 0], tri[0, 1], tri[0, 2]
+    e1x, e1y, e1z = tri[1, 0] - v0x, tri[1, 1] - v0y, tri[1, 2] - v0z
+    e2x, e2y, e2z = tri[2, 0] - v0x, tri[2, 1] - v0y, tri[2, 2] - v0z
+    px = dy * e2z - dz * e2y
+    py = dz * e2x - dx * e2z
+    pz = dx * e2y - dy * e2x
+    det = e1x * px + e1y * py + e1z * pz
+    if det == 0.0:  # ray parallel to the plane (or a degenerate triangle)
+        return False, np.inf, 0.0, 0.0
+    inv = 1.0 / det
+    sx, sy, sz = ox - v0x, oy - v0y, oz - v0z
+    u = (sx * px + sy * py + sz * pz) * inv
+    qx = sy * e1z - sz * e1y
+    qy = sz * e1x - sx * e1z
+    qz = sx * e1y - sy * e1x
+    v = (dx * qx + dy * qy + dz * qz) * inv
+    t = (e2x * qx + e2y * qy + e2z * qz) * inv
+    if not (t > tmin and t < tmax):
+        return False, np.inf, 0.0, 0.0
+    w = 1.0 - u - v
+    if u >= 0.0 and v >= 0.0 and w >= 0.0:
+        return True, t, u, v
+    # Near an edge: compare squared distances from each edge line with eps².
+    nx = e1y * e2z - e1z * e2y
+    ny = e1z * e2x - e1x * e2z
+    nz = e1x * e2y - e1y * e2x
+    nn = nx * nx + ny * ny + nz * nz
+    e2 = eps * eps
+    if u < 0.0 and u * u * nn > e2 * (e2x * e2x + e2y * e2y + e2z * e2z):
+        return False, np.inf, 0.0, 0.0
+    if v < 0.0 and v * v * nn > e2 * (e1x * e1x + e1y * e1y + e1z * e1z):
+        return False, np.inf, 0.0, 0.0
+    if w < 0.0:
+        fx, fy, fz = e2x - e1x, e2y - e1y, e2z - e1z
+        if w * w * nn > e2 * (fx * fx + fy * fy + fz * fz):
+            return False, np.inf, 0.0, 0.0
+    return True, t, u, v
+
+
+# ------------------------------------------------------------------------------------------
+# Traversal.
+
+
+@jit
+def _slab(o, d, lo, hi, t0, t1):
+    """Clip ``[t0, t1]`` to the slab ``lo <= o + t d <= hi`` of one axis (empty: t0 > t1)."""
+    if d == 0.0:
+        if o < lo or o > hi:
+            return 1.0, 0.0
+        return t0, t1
+    ta = (lo - o) / d
+    tb = (hi - o) / d
+    if ta > tb:
+        ta, tb = tb, ta
+    return max(t0, ta), min(t1, tb)
+
+
+@jit
+def _start(o, d, t0, origin, cell, n):
+    """Cell index at ``t0`` along one axis, its step, and the next boundary plane's index."""
+    i = int(np.floor((o + t0 * d - origin) / cell)) if d != 0.0 else int(
+        np.floor((o - origin) / cell))
+    i = max(0, min(n - 1, i))
+    if d > 0.0:
+        return i, 1, 1
+    if d < 0.0:
+        return i, -1, 0
+    return i, 0, 0
+
+
+@jit
+def _next_t(o, d, i, plane_off, origin, cell):
+    """``t`` at which the ray leaves cell ``i`` along one axis (inf when parallel)."""
+    if d == 0.0:
+        return np.inf
+    # Recomputed from the plane's index every step (no accumulated tDelta), so the cell
+    # boundaries the walk uses are those of registration up to one rounding.
+    return (origin + (i + plane_off) * cell - o) / d
+
+
+@jit
+def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode):
+    """Walk the grid: closest hit ``(t, tri, u, v)``, or the first hit found if ``any_mode``."""
+    miss = (np.inf, -1, 0.0, 0.0)
+    if not (np.isfinite(ox) and np.isfinite(oy) and np.isfinite(oz) and np.isfinite(dx)
+            and np.isfinite(dy) and np.isfinite(dz)):
+        return miss
+    if dx == 0.0 and dy == 0.0 and dz == 0.0:
+        return miss
+    if not (tmin < tmax):  # also catches NaN limits
+        return miss
+    origin, cell, dims = grid.origin, grid.cell, grid.dims
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    t0, t1 = _slab(ox, dx, origin[0], origin[0] + nx * cell[0], tmin, tmax)
+    t0, t1 = _slab(oy, dy, origin[1], origin[1] + ny * cell[1], t0, t1)
+    t0, t1 = _slab(oz, dz, origin[2], origin[2] + nz * cell[2], t0, t1)
+    if t0 > t1:
+        return miss
+    i, si, oi = _start(ox, dx, t0, origin[0], cell[0], nx)
+    j, sj, oj = _start(oy, dy, t0, origin[1], cell[1], ny)
+    k, sk, ok = _start(oz, dz, t0, origin[2], cell[2], nz)
+    cell_start, cell_items, tris, eps = grid.cell_start, grid.cell_items, grid.triangles, grid.eps
+    best_t, best_tri, best_u, best_v = tmax, -1, 0.0, 0.0
+    while True:
+        tx = _next_t(ox, dx, i, oi, origin[0], cell[0])
+        ty = _next_t(oy, dy, j, oj, origin[1], cell[1])
+        tz = _next_t(oz, dz, k, ok, origin[2], cell[2])
+        t_exit = min(tx, ty, tz)
+        c = (k * ny + j) * nx + i
+        for m in range(cell_start[c], cell_start[c + 1]):
+            tri = cell_items[m]
+            hit, t, u, v = _intersect(tris[tri], ox, oy, oz, dx, dy, dz, tmin, best_t, eps)
+            if hit:
+                if any_mode:
+                    return t, tri, u, v
+                best_t, best_tri, best_u, best_v = t, tri, u, v
+        # Stop once the segment ends in this cell or a hit lies no later than its exit: any
+        # closer hit lies in a cell already visited. A hit beyond the exit is only a bound.
+        if t_exit >= min(t1, best_t):
+            break
+        if tx <= ty and tx <= tz:
+            i += si
+            if i < 0 or i >= nx:
+                break
+        elif ty <= tz:
+            j += sj
+            if j < 0 or j >= ny:
+                break
+        else:
+            k += sk
+            if k < 0 or k >= nz:
+                break
+    if best_tri < 0:
+        return miss
+    return best_t, best_tri, best_u, best_v
+
+
+@jit
+def closest_hit_one(grid, o, d, tmin, tmax):
+    """Closest hit of one ray ``o + t d``, ``tmin < t < tmax``: ``(t, tri, u, v)``.
+
+    o, d : (3,) float64; ``d`` need not be unit (``t`` is in units of ``|d|``). On a miss
+    ``t`` is inf and ``tri`` is -1. ``P = (1 - u - v) V0 + u V1 + v V2``.
+    """
+    return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, False)
+
+
+@jit
+def any_hit_one(grid, o, d, tmin, tmax):
+    """Whether the ray ``o + t d`` hits any triangle with ``tmin < t < tmax`` (shadow ray)."""
+    return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, True)[1] >= 0
+
+
+@jit
+def closest_hit_brute_one(grid, o, d, tmin, tmax):
+    """:func:`closest_hit_one` by testing every triangle, in id order (ties: lowest id)."""
+    tris, eps = grid.triangles, grid.eps
+    best_t, best_tri, best_u, best_v = tmax, -1, 0.0, 0.0
+    for k in range(tris.shape[0]):
+        hit, t, u, v = _intersect(tris[k], o[0], o[1], o[2], d[0], d[1], d[2], tmin, best_t, eps)
+        if hit:
+            best_t, best_tri, best_u, best_v = t, k, u, v
+    if best_tri < 0:
+        return np.inf, -1, 0.0, 0.0
+    return best_t, best_tri, best_u, best_v
+
+
+@jit
+def any_hit_brute_one(grid, o, d, tmin, tmax):
+    """:func:`any_hit_one` by testing every triangle."""
+    tris, eps = grid.triangles, grid.eps
+    for k in range(tris.shape[0]):
+        if _intersect(tris[k], o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, eps)[0]:
+            return True
+    return False
+
+
+# ------------------------------------------------------------------------------------------
+# Batches of rays.
+
+
+@jit
+def _closest_batch(grid, origins, directions, tmin, tmax, brute):
+    n = origins.shape[0]
+    t_out = np.empty(n, dtype=np.float64)
+    tri_out = np.empty(n, dtype=np.int32)
+    u_out = np.empty(n, dtype=np.float64)
+    v_out = np.empty(n, dtype=np.float64)
+    for r in range(n):
+        if brute:
+            t, tri, u, v = closest_hit_brute_one(grid, origins[r], directions[r], tmin[r], tmax[r])
+        else:
+            t, tri, u, v = closest_hit_one(grid, origins[r], directions[r], tmin[r], tmax[r])
+        t_out[r] = t
+        tri_out[r] = tri
+        u_out[r] = u
+        v_out[r] = v
+    return t_out, tri_out, u_out, v_out
+
+
+@jit
+def _any_batch(grid, origins, directions, tmin, tmax, brute):
+    n = origins.shape[0]
+    out = np.empty(n, dtype=np.bool_)
+    for r in range(n):
+        if brute:
+            out[r] = any_hit_brute_one(grid, origins[r], directions[r], tmin[r], tmax[r])
+        else:
+            out[r] = any_hit_one(grid, origins[r], directions[r], tmin[r], tmax[r])
+    return out
+
+
+def _rays(origins, directions, tmin, tmax):
+    """Contiguous float64 copies of a batch of rays; ``tmin``/``tmax`` may be scalars."""
+    o = np.ascontiguousarray(origins, dtype=np.float64)
+    d = np.ascontiguousarray(directions, dtype=np.float64)
+    if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
+        raise ValueError(f"origins and directions must be (n, 3), not {o.shape}, {d.shape}")
+    n = o.shape[0]
+    lo = np.ascontiguousarray(np.broadcast_to(np.asarray(tmin, dtype=np.float64), (n,)))
+    hi = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, dtype=np.float64), (n,)))
+    return o, d, lo, hi
+
+
+def closest_hit(grid: Grid, origins, directions, tmin, tmax):
+    """Closest hits of a batch of rays through the grid.
+
+    origins, directions : (n, 3) float64
+    tmin, tmax : (n,) float64 (or scalars)
+
+    Returns ``t (n,) float64`` (inf on a miss), ``tri (n,) int32`` (-1 on a miss),
+    ``u, v (n,) float64``: barycentrics of vertices 1 and 2 of the hit triangle.
+    """
+    return _closest_batch(grid, *_rays(origins, directions, tmin, tmax), False)
+
+
+def any_hit(grid: Grid, origins, directions, tmin, tmax):
+    """Shadow rays: ``(n,) bool``, True when some triangle is hit with ``tmin < t < tmax``."""
+    return _any_batch(grid, *_rays(origins, directions, tmin, tmax), False)
+
+
+def closest_hit_brute(grid: Grid, origins, directions, tmin, tmax):
+    """:func:`closest_hit` by testing every triangle (reference; ties go to the lowest id)."""
+    return _closest_batch(grid, *_rays(origins, directions, tmin, tmax), True)
+
+
+def any_hit_brute(grid: Grid, origins, directions, tmin, tmax):
+    """:func:`any_hit` by testing every triangle (reference)."""
+    return _any_batch(grid, *_rays(origins, directions, tmin, tmax), True)
