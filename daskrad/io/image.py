@@ -1,0 +1,73 @@
+"""OpenEXR and PNG output.
+
+Writes go to a temporary file in the same directory and are renamed into place, so an
+interrupted run never leaves a half-written image that looks like a result.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+
+def _atomic_target(path: Path) -> Path:
+    return path.with_name(f".{path.name}.partial{path.suffix}")
+
+
+def write_exr(path: str | Path, rgb: np.ndarray) -> None:
+    """Write linear radiance ``rgb : (H, W, 3)`` as a float32 scanline OpenEXR with ZIP compression.
+
+    STACK.md: OpenEXR writes a non-C-contiguous array as garbage, silently, and refuses float64;
+    hence the explicit contiguous float32 copy.
+    """
+    import OpenEXR
+
+    path = Path(path)
+    pixels = np.ascontiguousarray(rgb, dtype=np.float32)
+    if pixels.ndim != 3 or pixels.shape[2] != 3:
+        raise ValueError(f"rgb must be (H, W, 3), got {pixels.shape}")
+    tmp = _atomic_target(path)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    OpenEXR.File(header, {"RGB": pixels}).write(str(tmp))
+    os.replace(tmp, path)
+
+
+def read_exr(path: str | Path) -> np.ndarray:
+    """``(H, W, 3) float32`` linear RGB from an OpenEXR file written by :func:`write_exr`."""
+    import OpenEXR
+
+    with OpenEXR.File(str(path)) as f:
+        return np.array(f.channels()["RGB"].pixels, dtype=np.float32)
+
+
+def tonemap(rgb: np.ndarray, exposure: float | None = None) -> np.ndarray:
+    """Linear radiance → 8-bit sRGB for the preview.
+
+    Exposure is chosen so the 99th percentile of luminance maps to 0.9 (emitters, which are
+    far brighter than anything they light, then saturate instead of darkening the image),
+    followed by a Reinhard-style shoulder and the sRGB transfer curve.
+    Returns ``(H, W, 3) uint8``.
+    """
+    rgb = np.nan_to_num(np.asarray(rgb, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    rgb = np.maximum(rgb, 0.0)
+    if exposure is None:
+        lum = rgb @ np.array([0.2126, 0.7152, 0.0722])
+        ref = np.percentile(lum, 99.0) if lum.size else 0.0
+        exposure = 0.9 / ref if ref > 0 else 1.0
+    x = rgb * exposure
+    x = x / (1.0 + x / 4.0) * 1.25  # soft shoulder; 1 → 1.0, keeps mid-tones linear-ish
+    x = np.clip(x, 0.0, 1.0)
+    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return np.round(srgb * 255.0).astype(np.uint8)
+
+
+def write_png(path: str | Path, rgb: np.ndarray, exposure: float | None = None) -> None:
+    """Tone-mapped sRGB preview of linear ``rgb : (H, W, 3)``."""
+    from PIL import Image
+
+    path = Path(path)
+    tmp = _atomic_target(path)
+    Image.fromarray(tonemap(rgb, exposure), mode="RGB").save(tmp, format="PNG")
+    os.replace(tmp, path)
