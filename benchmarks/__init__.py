@@ -1,0 +1,1 @@
+"""daskrad benchmarks: `python -m benchmarks` or `make bench`."""
