@@ -1,0 +1,173 @@
+"""The TOML sidecar: camera and lights that a mesh file cannot hold (DESIGN §6).
+
+Schema (every key below, nothing else; an unknown key or a wrong type is a :class:`SceneError`
+naming the TOML file)::
+
+    [camera]                 # optional; without it the renderer frames the bounding box
+    eye = [x, y, z]          # required
+    look_at = [x, y, z]      # required
+    up = [x, y, z]           # default [0, 1, 0]
+    fov = 39.3               # required, horizontal, degrees, in (0, 180)
+    width = 256              # default 256
+    height = 256             # default 256
+
+    [[light]]
+    type = "point"           # intensity: W/sr per RGB channel
+    position = [x, y, z]
+    intensity = [r, g, b]
+
+    [[light]]
+    type = "directional"     # direction the light travels (normalized here);
+    direction = [x, y, z]    # irradiance: W/m² on a surface facing the light
+    irradiance = [r, g, b]
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from daskrad.errors import SceneError
+from daskrad.scene.types import Camera, DirectionalLights, PointLights
+
+DEFAULT_IMAGE_SIZE = 256
+
+_CAMERA_KEYS = {"eye", "look_at", "up", "fov", "width", "height"}
+_LIGHT_KEYS = {
+    "point": {"type", "position", "intensity"},
+    "directional": {"type", "direction", "irradiance"},
+}
+
+
+@dataclass(frozen=True)
+class Config:
+    """What a TOML sidecar adds to a scene."""
+
+    path: str
+    camera: Camera | None
+    point_lights: PointLights
+    directional_lights: DirectionalLights
+
+
+def _is_number(x) -> bool:
+    # bool is an int in Python; `fov = true` is a mistake, not 1 degree
+    return isinstance(x, int | float) and not isinstance(x, bool)
+
+
+def _vec3(table: dict, key: str, where: str, path: Path) -> np.ndarray:
+    value = table[key]
+    if not (isinstance(value, list) and len(value) == 3 and all(_is_number(x) for x in value)):
+        raise SceneError(f"{where}.{key} must be an array of 3 numbers, got {value!r}", path)
+    out = np.array(value, dtype=np.float64)
+    if not np.isfinite(out).all():
+        raise SceneError(f"{where}.{key} must be finite, got {value!r}", path)
+    return out
+
+
+def _check_keys(table, allowed: set[str], required: set[str], where: str, path: Path):
+    if not isinstance(table, dict):
+        raise SceneError(f"{where} must be a table, got {table!r}", path)
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise SceneError(
+            f"unknown key {unknown[0]!r} in {where} (allowed: {', '.join(sorted(allowed))})", path
+        )
+    missing = sorted(required - set(table))
+    if missing:
+        raise SceneError(f"{where} needs {missing[0]!r}", path)
+
+
+def _camera(table, path: Path) -> Camera:
+    _check_keys(table, _CAMERA_KEYS, {"eye", "look_at", "fov"}, "[camera]", path)
+    eye = _vec3(table, "eye", "camera", path)
+    look_at = _vec3(table, "look_at", "camera", path)
+    up = _vec3(table, "up", "camera", path) if "up" in table else np.array([0.0, 1.0, 0.0])
+    fov = table["fov"]
+    if not _is_number(fov) or not 0.0 < fov < 180.0:
+        raise SceneError(f"camera.fov must be a number of degrees in (0, 180), got {fov!r}", path)
+    size = {}
+    for key in ("width", "height"):
+        v = table.get(key, DEFAULT_IMAGE_SIZE)
+        if not isinstance(v, int) or isinstance(v, bool) or v <= 0:
+            raise SceneError(f"camera.{key} must be a positive integer, got {v!r}", path)
+        size[key] = v
+    forward = look_at - eye
+    if not np.linalg.norm(forward) > 0:
+        raise SceneError("camera.eye and camera.look_at are the same point", path)
+    cross = np.linalg.norm(np.cross(forward, up))
+    if not cross > 1e-9 * np.linalg.norm(forward) * np.linalg.norm(up):
+        raise SceneError("camera.up is zero or parallel to the view direction", path)
+    return Camera(
+        eye=eye, look_at=look_at, up=up, fov=float(fov), width=size["width"], height=size["height"]
+    )
+
+
+def _lights(entries, path: Path) -> tuple[PointLights, DirectionalLights]:
+    if not isinstance(entries, list):
+        raise SceneError("light must be an array of tables: write [[light]]", path)
+    pos, inten, dirs, irr = [], [], [], []
+    for i, entry in enumerate(entries):
+        where = f"[[light]] #{i + 1}"
+        if not isinstance(entry, dict):
+            raise SceneError(f"{where} must be a table", path)
+        kind = entry.get("type")
+        if kind not in _LIGHT_KEYS:
+            raise SceneError(
+                f"{where}: type must be \"point\" or \"directional\", got {kind!r}", path
+            )
+        keys = _LIGHT_KEYS[kind]
+        _check_keys(entry, keys, keys, where, path)
+        if kind == "point":
+            pos.append(_vec3(entry, "position", where, path))
+            power = _vec3(entry, "intensity", where, path)
+            inten.append(power)
+            name = "intensity"
+        else:
+            d = _vec3(entry, "direction", where, path)
+            norm = np.linalg.norm(d)
+            if not norm > 0:
+                raise SceneError(f"{where}: direction must not be zero", path)
+            dirs.append(d / norm)
+            power = _vec3(entry, "irradiance", where, path)
+            irr.append(power)
+            name = "irradiance"
+        if (power < 0).any():
+            raise SceneError(f"{where}: {name} must not be negative, got {power.tolist()}", path)
+    points = PointLights(
+        position=np.array(pos, dtype=np.float64).reshape(-1, 3),
+        intensity=np.array(inten, dtype=np.float64).reshape(-1, 3),
+    )
+    directional = DirectionalLights(
+        direction=np.array(dirs, dtype=np.float64).reshape(-1, 3),
+        irradiance=np.array(irr, dtype=np.float64).reshape(-1, 3),
+    )
+    return points, directional
+
+
+def read_config(path: str | Path) -> Config:
+    """Parse and check one TOML sidecar."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except FileNotFoundError:
+        raise SceneError("TOML config not found", path) from None
+    except IsADirectoryError:
+        raise SceneError("TOML config is a directory, not a file", path) from None
+    except OSError as err:
+        raise SceneError(f"cannot read TOML config: {err.strerror or err}", path) from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
+        raise SceneError(f"malformed TOML: {err}", path) from None
+    unknown = sorted(set(data) - {"camera", "light"})
+    if unknown:
+        hint = " ([[shape]] is not supported yet)" if unknown[0] == "shape" else ""
+        raise SceneError(
+            f"unknown key {unknown[0]!r} (allowed: [camera], [[light]]){hint}", path
+        )
+    camera = _camera(data["camera"], path) if "camera" in data else None
+    points, directional = _lights(data.get("light", []), path)
+    return Config(str(path), camera, points, directional)
+

@@ -1,0 +1,224 @@
+"""Faces of any corner count → input polygons: planar convex quads and triangles (DESIGN §1, §3).
+
+Every function keeps the file's winding: a polygon's normal ``(v1 - v0) × (v2 - v0)`` points the
+way the face's own (Newell) normal points, which is the side the file says is lit. Nothing here
+"fixes" normals.
+
+Tolerances are relative to the scene's scale ``diag`` (the bounding-box diagonal), see
+:mod:`daskrad.tolerances`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from daskrad import tolerances
+
+
+def newell_normal(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area vectors of polygons with the same corner count (Newell's method).
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    faces : (k, n) int
+        Corner indices, no ``-1``.
+
+    Returns
+    -------
+    (k, 3) float64
+        ``½ Σ v_i × v_{i+1}``: its length is the area of a planar polygon, its direction the
+        normal given by the corners' order (counter-clockwise seen from where it points).
+    """
+    p = vertices[faces]
+    return 0.5 * np.cross(p, np.roll(p, -1, axis=1)).sum(axis=1)
+
+
+def convex_planar(vertices: np.ndarray, faces: np.ndarray, diag: float) -> np.ndarray:
+    """``(k,) bool``: polygons that are planar and strictly convex.
+
+    Planar: every corner lies within ``PLANAR_QUAD * diag`` of the plane through the centroid
+    with the Newell normal. Strictly convex: at every corner the turn ``e_i × e_{i+1}`` points
+    along the normal by more than ``DEGENERATE_AREA * diag²`` (a corner of 180° or a reflex
+    corner fails, so a kept quad never has three collinear corners and its normal
+    ``(v1 - v0) × (v2 - v0)`` is well defined).
+    """
+    p = vertices[faces]
+    area_vec = newell_normal(vertices, faces)
+    length = np.linalg.norm(area_vec, axis=1)
+    n = area_vec / np.where(length > 0, length, 1.0)[:, None]
+    centre = p.mean(axis=1)
+    offset = np.abs(np.einsum("kij,kj->ki", p - centre[:, None, :], n))
+    planar = (offset <= tolerances.PLANAR_QUAD * diag).all(axis=1) & (length > 0)
+    e = np.roll(p, -1, axis=1) - p
+    turn = np.einsum("kij,kj->ki", np.cross(e, np.roll(e, -1, axis=1)), n)
+    convex = (turn > tolerances.DEGENERATE_AREA * diag**2).all(axis=1)
+    return planar & convex
+
+
+def polygon_area(vertices: np.ndarray, polygons: np.ndarray) -> np.ndarray:
+    """``(Q,) float64`` area of triangles and quads (``-1`` in column 3 for a triangle).
+
+    A quad's area is ``½ |d₁ × d₂|`` with ``d`` its diagonals (exact for a planar quad).
+    """
+    p0, p1, p2 = (vertices[polygons[:, i]] for i in range(3))
+    quad = polygons[:, 3] >= 0
+    p3 = vertices[np.where(quad, polygons[:, 3], polygons[:, 0])]
+    tri = np.cross(p1 - p0, p2 - p0)
+    qd = np.cross(p2 - p0, p3 - p1)
+    return 0.5 * np.linalg.norm(np.where(quad[:, None], qd, tri), axis=1)
+
+
+def _ear_clip(vertices: np.ndarray, face: np.ndarray, diag: float) -> np.ndarray:
+    """Triangulate one simple polygon (possibly concave) by ear clipping, keeping its winding.
+
+    Returns ``(n - 2, 3)`` int indices. Only non-convex or non-planar n-gons come here, which
+    are rare in scene files, so a Python loop over their corners is acceptable. A polygon with
+    no ear (self-intersecting, or degenerate) falls back to a fan.
+    """
+    n_vec = newell_normal(vertices, face[None, :])[0]
+    norm = np.linalg.norm(n_vec)
+    if norm == 0:
+        return np.stack([np.full(len(face) - 2, face[0]), face[1:-1], face[2:]], axis=1)
+    n_vec = n_vec / norm
+    eps = tolerances.DEGENERATE_AREA * diag**2
+    idx = list(face)
+    tris = []
+    while len(idx) > 3:
+        m = len(idx)
+        for k in range(m):
+            a, b, c = idx[k - 1], idx[k], idx[(k + 1) % m]
+            pa, pb, pc = vertices[a], vertices[b], vertices[c]
+            if np.dot(np.cross(pb - pa, pc - pb), n_vec) <= eps:
+                continue  # reflex or flat corner: not an ear
+            others = [j for j in idx if j not in (a, b, c)]
+            q = vertices[others]
+            # a corner strictly inside (or on) triangle abc forbids the ear
+            s1 = np.cross(pb - pa, q - pa) @ n_vec
+            s2 = np.cross(pc - pb, q - pb) @ n_vec
+            s3 = np.cross(pa - pc, q - pc) @ n_vec
+            if np.any((s1 >= 0) & (s2 >= 0) & (s3 >= 0)):
+                continue
+            tris.append((a, b, c))
+            del idx[k]
+            break
+        else:  # no ear: give up on this polygon's shape and fan the rest
+            tris.extend((idx[0], idx[j], idx[j + 1]) for j in range(1, len(idx) - 1))
+            return np.asarray(tris, dtype=np.int64)
+    tris.append(tuple(idx))
+    return np.asarray(tris, dtype=np.int64)
+
+
+def faces_to_polygons(
+    vertices: np.ndarray, flat: np.ndarray, counts: np.ndarray, diag: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Turn faces of any corner count into triangles and planar convex quads.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    flat : (sum(counts),) int
+        Corner indices of all faces, one face after the other.
+    counts : (F,) int
+        Corners per face, each ≥ 3.
+    diag : float
+        Scene scale for the tolerances.
+
+    Returns
+    -------
+    polygons : (Q, 4) int32
+        ``-1`` in column 3 for triangles. A planar convex quad stays a quad; a non-planar or
+        concave quad is split into two triangles along the diagonal through its reflex corner
+        (the 0–2 diagonal if neither is reflex); a convex planar n-gon (n ≥ 5) becomes a fan,
+        any other n-gon is ear-clipped.
+    face : (Q,) int64
+        The input face each polygon came from (to carry its material), in increasing order.
+    """
+    counts = np.asarray(counts, dtype=np.int64)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    pieces: list[tuple[np.ndarray, np.ndarray]] = []  # (polygons, face id)
+    for n in np.unique(counts):
+        ids = np.flatnonzero(counts == n)
+        f = flat[starts[ids][:, None] + np.arange(n)]
+        if n == 3:
+            pieces.append((np.column_stack([f, np.full(len(f), -1)]), ids))
+            continue
+        good = convex_planar(vertices, f, diag)
+        if n == 4:
+            pieces.append((f[good], ids[good]))
+            bad, bad_ids = f[~good], ids[~good]
+            # the diagonal must pass through a reflex corner, if there is one: the turn at
+            # corner 1 or 3 being the smallest means split along 1–3
+            p = vertices[bad]
+            e = np.roll(p, -1, axis=1) - p
+            nv = newell_normal(vertices, bad)
+            turn = np.einsum("kij,kj->ki", np.cross(np.roll(e, 1, axis=1), e), nv)
+            via13 = np.isin(np.argmin(turn, axis=1), (1, 3))
+            r = np.where(via13[:, None], np.roll(bad, -1, axis=1), bad)
+            t1 = np.column_stack([r[:, 0], r[:, 1], r[:, 2], np.full(len(r), -1)])
+            t2 = np.column_stack([r[:, 0], r[:, 2], r[:, 3], np.full(len(r), -1)])
+            pieces.append((np.stack([t1, t2], axis=1).reshape(-1, 4), np.repeat(bad_ids, 2)))
+            continue
+        fan_f, fan_ids = f[good], ids[good]
+        j = np.arange(1, n - 1)
+        fan = np.stack(
+            [np.repeat(fan_f[:, :1], n - 2, axis=1), fan_f[:, j], fan_f[:, j + 1]], axis=2
+        )
+        fan = np.concatenate([fan, np.full(fan.shape[:2] + (1,), -1)], axis=2)
+        pieces.append((fan.reshape(-1, 4), np.repeat(fan_ids, n - 2)))
+        for face, fid in zip(f[~good], ids[~good], strict=True):
+            tris = _ear_clip(vertices, face, diag)
+            tris4 = np.column_stack([tris, np.full(len(tris), -1)])
+            pieces.append((tris4, np.full(len(tris), fid)))
+    if not pieces:
+        return np.zeros((0, 4), np.int32), np.zeros(0, np.int64)
+    polys = np.concatenate([p for p, _ in pieces]).astype(np.int32)
+    face = np.concatenate([i for _, i in pieces]).astype(np.int64)
+    order = np.argsort(face, kind="stable")
+    return polys[order], face[order]
+
+
+def pair_triangles(vertices: np.ndarray, tris: np.ndarray, diag: float) -> np.ndarray:
+    """Recover quads from consecutive triangle pairs, as trimesh's loaders leave them.
+
+    trimesh splits a quad ``(a, b, c, d)`` into ``(a, b, c), (c, d, a)`` (PLY, OBJ) and a fan
+    gives ``(a, b, c), (a, c, d)``; both halves stay next to each other. A pair is merged when it
+    matches one of these patterns and the quad ``(a, b, c, d)`` is planar and convex (so the
+    merged quad covers exactly the two triangles, with their winding). Pairs never overlap:
+    inside a run of mergeable neighbours every other one is taken.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    tris : (T, 3) int
+    diag : float
+
+    Returns
+    -------
+    (Q, 4) int32, ``-1`` in column 3 for the triangles left alone; order follows ``tris``.
+    """
+    tris = np.asarray(tris, dtype=np.int64)
+    t = len(tris)
+    out_tri = np.column_stack([tris, np.full(t, -1)]).astype(np.int32)
+    if t < 2:
+        return out_tri
+    x, y = tris[:-1], tris[1:]
+    # pattern (a,b,c),(c,d,a): quad a b c d with d = y[1]
+    p1 = (y[:, 0] == x[:, 2]) & (y[:, 2] == x[:, 0])
+    # pattern (a,b,c),(a,c,d): quad a b c d with d = y[2]
+    p2 = (y[:, 0] == x[:, 0]) & (y[:, 1] == x[:, 2])
+    d = np.where(p1, y[:, 1], y[:, 2])
+    quads = np.column_stack([x, d])
+    ok = p1 | p2
+    ok &= (quads[:, 3] != quads[:, 0]) & (quads[:, 3] != quads[:, 1]) & (quads[:, 3] != quads[:, 2])
+    ok[ok] = convex_planar(vertices, quads[ok], diag)
+    # runs of True in ok: take offsets 0, 2, 4, ... from the start of each run
+    idx = np.arange(len(ok))
+    run_start = np.maximum.accumulate(np.where(~ok, idx + 1, 0))
+    take = ok & ((idx - run_start) % 2 == 0)
+    first = np.flatnonzero(take)
+    keep = np.ones(t, dtype=bool)
+    keep[first + 1] = False
+    out = out_tri.copy()
+    out[first] = quads[first]
+    return out[keep]

@@ -1,0 +1,226 @@
+"""Checks every scene goes through, from a file or from arrays (DESIGN §6, §7).
+
+Each refusal is a :class:`SceneError` naming the file and the problem; a user can fix it.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from daskrad import tolerances
+from daskrad.errors import SceneError
+from daskrad.scene.polygons import convex_planar, faces_to_polygons, polygon_area
+from daskrad.scene.types import Camera, DirectionalLights, Materials, PointLights, Scene
+
+
+def check_vertices(vertices, path: str) -> np.ndarray:
+    """``(V, 3) float64`` copy of ``vertices``; refuses NaN or infinite coordinates."""
+    try:
+        v = np.array(vertices, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SceneError("vertex coordinates are not numbers", path) from None
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise SceneError(f"vertices must have shape (V, 3), got {v.shape}", path)
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise SceneError(
+            f"{int(bad.sum())} vertices have NaN or infinite coordinates "
+            f"(first: vertex {i + 1} = {v[i].tolist()})",
+            path,
+        )
+    return v
+
+
+def scale_of(vertices: np.ndarray, corners: np.ndarray) -> float:
+    """Bounding-box diagonal of the vertices that ``corners`` use (``-1`` ignored)."""
+    used = corners[corners >= 0]
+    if used.size == 0:
+        return 0.0
+    v = vertices[np.unique(used)]
+    return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+
+
+def _rgb_table(values, m: int, name: str, path: str) -> np.ndarray:
+    try:
+        a = np.array(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SceneError(f"{name} values are not numbers", path) from None
+    if a.shape != (m, 3):
+        raise SceneError(f"{name} must have shape ({m}, 3), got {a.shape}", path)
+    return a
+
+
+def _first_bad(mask: np.ndarray, table: np.ndarray, names, what: str, rule: str, path: str):
+    if mask.any():
+        row, ch = np.argwhere(mask)[0]
+        raise SceneError(
+            f"material {names[row]!r}: {what} {'RGB'[ch]} = {table[row, ch]!r} {rule}", path
+        )
+
+
+def _as_lights(lights, cls, fields: tuple[str, str], path: str):
+    if lights is None:
+        return cls()
+    if isinstance(lights, cls):
+        a, b = getattr(lights, fields[0]), getattr(lights, fields[1])
+    else:
+        a, b = lights
+    try:
+        a = np.array(a, dtype=np.float64).reshape(-1, 3)
+        b = np.array(b, dtype=np.float64).reshape(-1, 3)
+    except (TypeError, ValueError):
+        raise SceneError(f"{cls.__name__}: expected (L, 3) arrays", path) from None
+    if len(a) != len(b):
+        raise SceneError(f"{cls.__name__}: {fields[0]} and {fields[1]} differ in length", path)
+    if not (np.isfinite(a).all() and np.isfinite(b).all()):
+        raise SceneError(f"{cls.__name__}: values must be finite", path)
+    if (b < 0).any():
+        raise SceneError(f"{cls.__name__}: {fields[1]} must not be negative", path)
+    if fields[0] == "direction":
+        norm = np.linalg.norm(a, axis=1)
+        if (norm == 0).any():
+            raise SceneError("directional light with a zero direction", path)
+        a = a / norm[:, None]
+    return cls(a, b)
+
+
+def scene_from_arrays(
+    vertices,
+    polygons,
+    polygon_material,
+    diffuse,
+    emission,
+    specular=None,
+    shininess=None,
+    mirror=None,
+    point_lights=None,
+    directional_lights=None,
+    camera: Camera | None = None,
+    path: str = "<arrays>",
+    material_names=None,
+) -> Scene:
+    """Build a :class:`Scene` from arrays, with every check :func:`load_scene` makes.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float
+    polygons : (Q, 4) int, or (Q, 3) for triangles only
+        ``-1`` in column 3 for a triangle; corners counter-clockwise seen from the lit side.
+    polygon_material : (Q,) int
+    diffuse, emission : (M, 3) float
+        Reflectance in ``[0, 1)``; emitted radiance ``≥ 0``.
+    specular : (M, 3) float, optional (default 0), in ``[0, 1]``
+    shininess : (M,) float, optional (default 0), ``≥ 0``
+    mirror : (M,) bool, optional (default False)
+    point_lights : PointLights or (position, intensity), optional
+    directional_lights : DirectionalLights or (direction, irradiance), optional
+        Directions are normalized here.
+    camera : Camera, optional
+    path : str
+        Named in every error message and kept as ``Scene.path``.
+    material_names : sequence of M str, optional
+
+    Zero-area polygons (below ``DEGENERATE_AREA * diag²``) are dropped with a warning and
+    counted in ``Scene.dropped_degenerate``. A scene with no emitting polygon and no light with
+    positive power is refused.
+    """
+    path = str(path)
+    v = check_vertices(vertices, path)
+    try:
+        poly = np.array(polygons, dtype=np.int64)
+    except (TypeError, ValueError):
+        raise SceneError("polygon corner indices are not integers", path) from None
+    if poly.ndim == 2 and poly.shape[1] == 3:
+        poly = np.column_stack([poly, np.full(len(poly), -1)])
+    if poly.ndim != 2 or poly.shape[1] != 4:
+        raise SceneError(f"polygons must have shape (Q, 4), got {poly.shape}", path)
+    if len(poly) == 0:
+        raise SceneError("no faces in the scene", path)
+    if (poly[:, :3] < 0).any() or (poly[:, 3] < -1).any() or (poly >= len(v)).any():
+        raise SceneError(f"polygon corner index out of range ({len(v)} vertices)", path)
+
+    try:
+        kd = np.array(diffuse, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SceneError("diffuse values are not numbers", path) from None
+    if kd.ndim != 2 or kd.shape[1] != 3 or len(kd) == 0:
+        raise SceneError(f"diffuse must have shape (M, 3), M >= 1, got {kd.shape}", path)
+    m = len(kd)
+    names = (
+        tuple(str(n) for n in material_names)
+        if material_names is not None
+        else tuple(f"material{i}" for i in range(m))
+    )
+    if len(names) != m:
+        raise SceneError(f"{len(names)} material names for {m} materials", path)
+    ke = _rgb_table(emission, m, "emission", path)
+    ks = np.zeros((m, 3)) if specular is None else _rgb_table(specular, m, "specular", path)
+    ns = np.zeros(m) if shininess is None else np.array(shininess, dtype=np.float64).reshape(m)
+    mir = np.zeros(m, bool) if mirror is None else np.array(mirror, dtype=bool).reshape(m)
+    # NaN fails every comparison, so each rule is written as "not (good)"
+    _first_bad(~((kd >= 0) & (kd < 1)), kd, names, "diffuse reflectance Kd",
+               "is outside [0, 1)", path)
+    _first_bad(~((ke >= 0) & np.isfinite(ke)), ke, names, "emission Ke",
+               "must be finite and not negative", path)
+    _first_bad(~((ks >= 0) & (ks <= 1)), ks, names, "specular reflectance Ks",
+               "is outside [0, 1]", path)
+    if not ((ns >= 0) & np.isfinite(ns)).all():
+        row = int(np.flatnonzero(~((ns >= 0) & np.isfinite(ns)))[0])
+        raise SceneError(f"material {names[row]!r}: shininess Ns = {ns[row]!r} is not >= 0", path)
+
+    pm = np.array(polygon_material, dtype=np.int64).reshape(-1)
+    if len(pm) != len(poly):
+        raise SceneError(f"{len(pm)} polygon materials for {len(poly)} polygons", path)
+    if ((pm < 0) | (pm >= m)).any():
+        raise SceneError(f"polygon material index out of range ({m} materials)", path)
+
+    points = _as_lights(point_lights, PointLights, ("position", "intensity"), path)
+    directional = _as_lights(
+        directional_lights, DirectionalLights, ("direction", "irradiance"), path
+    )
+
+    diag = scale_of(v, poly)
+    # a quad that is not planar and convex is split into two triangles, as a file's would be
+    quad = poly[:, 3] >= 0
+    if quad.any():
+        bad = np.flatnonzero(quad)[~convex_planar(v, poly[quad], diag)]
+        if len(bad):
+            split, which = faces_to_polygons(v, poly[bad].reshape(-1), np.full(len(bad), 4), diag)
+            keep = np.ones(len(poly), bool)
+            keep[bad] = False
+            face = np.concatenate([np.flatnonzero(keep), bad[which]])
+            order = np.argsort(face, kind="stable")
+            poly = np.concatenate([poly[keep], split])[order]
+            pm = pm[face[order]]
+    area = polygon_area(v, poly)
+    degenerate = ~(area > tolerances.DEGENERATE_AREA * diag**2)
+    dropped = int(degenerate.sum())
+    if dropped == len(poly):
+        raise SceneError(f"no faces in the scene (all {dropped} have zero area)", path)
+    if dropped:
+        warnings.warn(f"{path}: dropped {dropped} zero-area faces", stacklevel=2)
+        poly, pm = poly[~degenerate], pm[~degenerate]
+
+    emits = (ke[pm] > 0).any()
+    lit = (points.intensity > 0).any() or (directional.irradiance > 0).any()
+    if not (emits or lit):
+        raise SceneError(
+            "no light: no face emits (Ke > 0) and no [[light]] is given in a TOML config", path
+        )
+
+    materials = Materials(names=names, diffuse=kd, emission=ke, specular=ks, shininess=ns,
+                          mirror=mir)
+    return Scene(
+        path=path,
+        vertices=np.ascontiguousarray(v),
+        polygons=np.ascontiguousarray(poly, dtype=np.int32),
+        polygon_material=np.ascontiguousarray(pm, dtype=np.int32),
+        materials=materials,
+        point_lights=points,
+        directional_lights=directional,
+        camera=camera,
+        dropped_degenerate=dropped,
+    )
