@@ -1,0 +1,433 @@
+"""The hemisphere-base form factor (Doi; DESIGN §2): an item buffer on Nusselt's disc.
+
+From a differential area at ``p`` with unit normal ``n``, every receiving element is projected
+straight onto the base disc of the unit hemisphere over ``p``:
+
+1. Local frame with ``z = n`` (:func:`daskrad.kernels.geometry.orthonormal_basis`).
+2. Cull before any rasterizing: back-facing elements (receivers are one-sided: the element's
+   lit side must face ``p``, ``(p - q)·n_e > 0``) and elements wholly at or below the horizon.
+3. Clip against the plane ``z = h`` in 3-D (Sutherland–Hodgman), ``h = horizon_eps · diag`` a
+   tiny height *above* the tangent plane, so polygons coplanar with the shooter (its own
+   polygon, the rest of the floor it stands on) vanish instead of rasterizing round-off.
+4. Split each edge by inserting points **on the edge in (local) world space** until each piece
+   subtends less than the threshold angle (eq. 4). Instead of recursive midpoint insertion the
+   number of pieces is computed directly, ``n = ceil(angle / threshold)``, and the inserted
+   points are placed at *equal angles* as seen from ``p`` (law of sines:
+   ``P_k = A + s_k (B - A)``, ``s_k = |A| sin(kδ) / (|A| sin(kδ) + |B| sin((n-k)δ))``,
+   ``δ = angle/n``). They are still points of the world-space edge, so projecting them gives
+   points exactly on the projected curve, as midpoint insertion does; but every piece subtends
+   exactly ``angle/n <= threshold`` (equal steps in world space give unequal angles, the
+   largest at the end nearest ``p``), and the count needs no recursion. ``s_k`` has two
+   positive terms in its denominator, so it stays well conditioned even when the edge passes
+   close to ``p`` (where slerp divides by ``sin(angle) ≈ 0``).
+5. Project each point ``v`` to ``(x, y) = (v.x, v.y) / |v|`` (eqs. 1–3).
+6. Scan-convert into an ``R × R`` item buffer over ``[-1, 1]²`` with a depth buffer; pixels
+   whose centre lies outside the unit circle are ignored.
+
+**Shape of the projected outline.** The projection of a convex planar polygon seen from a point
+off its plane is a spherically convex region; its edges are great-circle arcs, and a great
+circle projects orthographically onto the base as an ellipse centred on the origin with semi-major
+axis 1. The region lies on one side of each arc: the side containing the pole is the inside of the
+ellipse (locally convex), the other side the outside (locally *concave*). So the projection is
+convex only when every edge has the pole on the polygon's side, e.g. when the polygon contains
+the zenith; in general it is not. A long thin strip low over the horizon projects to a crescent
+hugging the rim, which a horizontal scanline can cross twice. Hence the raster uses general
+even-odd scanline filling (all edge crossings of each row, sorted), not a convex two-edge walk.
+The polygon is still *simple* (the projection is injective on the upper hemisphere), so
+even-odd and non-zero filling agree.
+
+**Watertightness.** A pixel belongs to an element when its centre lies inside the polyline
+(half-open rules: a crossing is counted when ``y0 <= y < y1``, a span covers centres in
+``[x_left, x_right)``). Everything derived from an edge (clip points, inserted points, scanline
+crossings) is computed from its canonical endpoint (:func:`lex_less`, or the lower ``y``), so two
+elements sharing an edge produce bit-identical outlines and every pixel centre goes to exactly
+one of them: a closed scene leaves no hole. The edge created by the horizon clip has no
+neighbour on the other side; the true region extends down to the rim there, while a polyline
+chord would cut inside the circle by ``1 - cos(δ/2)`` and miss the outermost pixel centres.
+So a horizon edge is replaced by a chain pushed out of the disc (radial spikes at both ends and
+the inserted points scaled by ``1/cos(δ/2)``, so every chord is outside the unit circle); what
+lies outside the disc is ignored anyway.
+
+**Depth.** By default exact: for pixel direction ``d = (x, y, sqrt(1 - x² - y²))`` the distance
+to the element's plane is ``t = (n_e·q) / (n_e·d)``; the buffer stores ``1/t`` (larger is nearer),
+which is linear in ``d`` and needs no division per pixel. ``plane_depth=True`` reproduces the
+paper's eq. 5 instead: ``|v|`` interpolated over the disc by the plane through three projected
+vertices (exact only as a ranking of well-separated surfaces). Ties go to the element with the
+lower index (strict comparison), so results are deterministic.
+
+**Weights.** Every disc pixel carries the same weight ``w = 1 / n_disc`` with ``n_disc`` the
+number of pixel centres inside the unit circle (replacing the paper's ``4/(π R²)``, eqs. 6–7):
+the weights sum to exactly 1, each pixel has one winner, so ``Σ_j F_j <= 1`` always, ``= 1`` in a
+closed scene.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from daskrad.kernels._jit import jit
+from daskrad.kernels.geometry import element_planes, lex_less, orthonormal_basis, scene_diagonal
+
+
+@jit
+def disc_pixels(resolution):
+    """Pixel-centre coordinates and the disc mask of an ``R × R`` buffer over ``[-1, 1]²``.
+
+    Returns
+    -------
+    centre : (R,) float64
+        ``-1 + (2i + 1)/R``, the x (column) and y (row) coordinate of pixel centres.
+    dz : (R*R,) float64
+        ``sqrt(1 - x² - y²)`` at each pixel centre (row-major, ``index = row*R + column``), or
+        ``-1`` where the centre lies outside the unit circle. No centre lies exactly on the
+        circle: with ``a = 2i + 1 - R`` a centre is ``(a, b)/R``; for even ``R``, ``a`` and ``b``
+        are odd and ``a² + b² ≡ 2 (mod 4)`` while ``R² ≡ 0``; for odd ``R`` they are even and
+        ``a² + b²`` is even while ``R²`` is odd. So inside/outside is never a round-off call.
+    n_disc : int
+        Number of centres strictly inside the unit circle.
+    """
+    r = resolution
+    centre = np.empty(r)
+    for i in range(r):
+        centre[i] = -1.0 + (2.0 * i + 1.0) / r
+    dz = np.empty(r * r)
+    n_disc = 0
+    for j in range(r):
+        for i in range(r):
+            q = 1.0 - centre[i] * centre[i] - centre[j] * centre[j]
+            if q > 0.0:
+                dz[j * r + i] = np.sqrt(q)
+                n_disc += 1
+            else:
+                dz[j * r + i] = -1.0
+    return centre, dz, n_disc
+
+
+@jit
+def _n_pieces(ax, ay, az, ra, bx, by, bz, rb, cos_thr, thr):
+    """Number of pieces ``ceil(angle/thr)`` for the edge ``a``–``b`` seen from the origin."""
+    dot = ax * bx + ay * by + az * bz
+    if dot >= cos_thr * ra * rb:
+        return 1
+    gx = ay * bz - az * by
+    gy = az * bx - ax * bz
+    gz = ax * by - ay * bx
+    angle = np.arctan2(np.sqrt(gx * gx + gy * gy + gz * gz), dot)
+    n = int(np.ceil(angle / thr))
+    return max(n, 1)
+
+
+@jit
+def _emit_edge(ax, ay, az, bx, by, bz, horizon, cos_thr, thr, xs, ys, m):
+    """Append the projected polyline of the edge ``a → b`` (without ``b``) to ``xs, ys``.
+
+    Returns the new length. ``horizon`` marks the edge made by the horizon clip, which is
+    pushed out of the disc (see the module docstring).
+    """
+    ra = np.sqrt(ax * ax + ay * ay + az * az)
+    rb = np.sqrt(bx * bx + by * by + bz * bz)
+    xs[m] = ax / ra
+    ys[m] = ay / ra
+    m += 1
+    # Canonical endpoint first, so a neighbour traversing b → a computes identical points.
+    swap = lex_less(bx, by, bz, ax, ay, az)
+    if swap:
+        cx, cy, cz, rc = bx, by, bz, rb
+        dx, dy, dz_, rd = ax, ay, az, ra
+    else:
+        cx, cy, cz, rc = ax, ay, az, ra
+        dx, dy, dz_, rd = bx, by, bz, rb
+    n = _n_pieces(cx, cy, cz, rc, dx, dy, dz_, rd, cos_thr, thr)
+    if horizon:
+        # Every chord of the pushed-out chain stays outside the unit circle.
+        scale = 1.0 / np.cos(0.5 * np.arctan2(
+            np.sqrt((cy * dz_ - cz * dy) ** 2 + (cz * dx - cx * dz_) ** 2
+                    + (cx * dy - cy * dx) ** 2),
+            cx * dx + cy * dy + cz * dz_) / n)
+        # Radial spike out of a (in traversal order a first).
+        xs[m] = scale * ax / ra
+        ys[m] = scale * ay / ra
+        m += 1
+    else:
+        scale = 1.0
+    if n > 1:
+        # angle / n, recomputed here only for edges that really are split
+        gx = cy * dz_ - cz * dy
+        gy = cz * dx - cx * dz_
+        gz = cx * dy - cy * dx
+        delta = np.arctan2(np.sqrt(gx * gx + gy * gy + gz * gz),
+                           cx * dx + cy * dy + cz * dz_) / n
+        for k in range(1, n):
+            sa = rc * np.sin(k * delta)
+            sb = rd * np.sin((n - k) * delta)
+            t = sa / (sa + sb)
+            qx = cx + t * (dx - cx)
+            qy = cy + t * (dy - cy)
+            qz = cz + t * (dz_ - cz)
+            rq = np.sqrt(qx * qx + qy * qy + qz * qz)
+            pos = m + (n - 1 - k if swap else k - 1)
+            xs[pos] = scale * qx / rq
+            ys[pos] = scale * qy / rq
+        m += n - 1
+    if horizon:
+        # Radial spike back in to b (b itself is emitted by the next edge).
+        xs[m] = scale * bx / rb
+        ys[m] = scale * by / rb
+        m += 1
+    return m
+
+
+@jit
+def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
+           resolution, centre, dz, cos_thr, thr, plane_depth,
+           lx, ly, lz, item, zbuf, xs, ys, xcross, won, covered):
+    """One shot: fill ``won (E,)`` and ``covered (E,)`` (both int32, zeroed by the caller)."""
+    r = resolution
+    half_r = 0.5 * r
+    t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(snx, sny, snz)
+    n_vert = vertices.shape[0]
+    for v in range(n_vert):
+        wx = vertices[v, 0] - sx
+        wy = vertices[v, 1] - sy
+        wz = vertices[v, 2] - sz
+        lx[v] = t1x * wx + t1y * wy + t1z * wz
+        ly[v] = t2x * wx + t2y * wy + t2z * wz
+        lz[v] = snx * wx + sny * wy + snz * wz
+    for k in range(r * r):
+        item[k] = -1
+        zbuf[k] = -np.inf
+    qx = np.empty(5)
+    qy = np.empty(5)
+    qz = np.empty(5)
+    qclip = np.zeros(5, dtype=np.bool_)
+    cx = np.empty(4)
+    cy = np.empty(4)
+    cz = np.empty(4)
+    n_elem = elem_verts.shape[0]
+    for e in range(n_elem):
+        # c = n_e · (q - p) < 0  <=>  p on the lit side (one-sided receiver).
+        c = eoff[e] - (enrm[e, 0] * sx + enrm[e, 1] * sy + enrm[e, 2] * sz)
+        if not c < 0.0:
+            continue
+        k = 4 if elem_verts[e, 3] >= 0 else 3
+        zmax = -np.inf
+        zmin = np.inf
+        for a in range(k):
+            vi = elem_verts[e, a]
+            cx[a] = lx[vi]
+            cy[a] = ly[vi]
+            cz[a] = lz[vi]
+            zmax = max(zmax, cz[a])
+            zmin = min(zmin, cz[a])
+        if zmax <= hz:
+            continue
+        # --- clip against z = hz (keep z > hz) --------------------------------------------
+        m = 0
+        if zmin > hz:
+            for a in range(k):
+                qx[a] = cx[a]
+                qy[a] = cy[a]
+                qz[a] = cz[a]
+                qclip[a] = False
+            m = k
+        else:
+            for a in range(k):
+                b = (a + 1) % k
+                ina = cz[a] > hz
+                if ina:
+                    qx[m] = cx[a]
+                    qy[m] = cy[a]
+                    qz[m] = cz[a]
+                    qclip[m] = False
+                    m += 1
+                if ina != (cz[b] > hz):
+                    if lex_less(cx[a], cy[a], cz[a], cx[b], cy[b], cz[b]):
+                        i0 = a
+                        i1 = b
+                    else:
+                        i0 = b
+                        i1 = a
+                    t = (hz - cz[i0]) / (cz[i1] - cz[i0])
+                    qx[m] = cx[i0] + t * (cx[i1] - cx[i0])
+                    qy[m] = cy[i0] + t * (cy[i1] - cy[i0])
+                    qz[m] = hz
+                    qclip[m] = True
+                    m += 1
+        if m < 3:
+            continue
+        # --- projected polyline (eqs. 1–4) ----------------------------------------------------
+        mm = 0
+        for a in range(m):
+            b = (a + 1) % m
+            mm = _emit_edge(qx[a], qy[a], qz[a], qx[b], qy[b], qz[b],
+                            qclip[a] and qclip[b], cos_thr, thr, xs, ys, mm)
+        ymin = np.inf
+        ymax = -np.inf
+        for a in range(mm):
+            ymin = min(ymin, ys[a])
+            ymax = max(ymax, ys[a])
+        j0 = max(int(np.ceil((ymin + 1.0) * half_r - 0.5)) - 1, 0)
+        j1 = min(int(np.floor((ymax + 1.0) * half_r - 0.5)) + 1, r - 1)
+        if j0 > j1:
+            continue
+        # --- depth coefficients -----------------------------------------------------------
+        if plane_depth:
+            # Eq. 5: |v| as a linear function of the projected (x, y), through three vertices.
+            dep0 = np.sqrt(qx[0] ** 2 + qy[0] ** 2 + qz[0] ** 2)
+            x0 = qx[0] / dep0
+            y0 = qy[0] / dep0
+            best = -1.0
+            i1 = 1
+            for a in range(1, m):
+                ra_ = np.sqrt(qx[a] ** 2 + qy[a] ** 2 + qz[a] ** 2)
+                d2 = (qx[a] / ra_ - x0) ** 2 + (qy[a] / ra_ - y0) ** 2
+                if d2 > best:
+                    best = d2
+                    i1 = a
+            dep1 = np.sqrt(qx[i1] ** 2 + qy[i1] ** 2 + qz[i1] ** 2)
+            x1 = qx[i1] / dep1 - x0
+            y1 = qy[i1] / dep1 - y0
+            best = -1.0
+            i2 = 2
+            for a in range(1, m):
+                ra_ = np.sqrt(qx[a] ** 2 + qy[a] ** 2 + qz[a] ** 2)
+                ar = abs(x1 * (qy[a] / ra_ - y0) - y1 * (qx[a] / ra_ - x0))
+                if ar > best:
+                    best = ar
+                    i2 = a
+            dep2 = np.sqrt(qx[i2] ** 2 + qy[i2] ** 2 + qz[i2] ** 2)
+            x2 = qx[i2] / dep2 - x0
+            y2 = qy[i2] / dep2 - y0
+            det = x1 * y2 - x2 * y1
+            if det != 0.0:
+                da = ((dep1 - dep0) * y2 - (dep2 - dep0) * y1) / det
+                db = (x1 * (dep2 - dep0) - x2 * (dep1 - dep0)) / det
+            else:
+                da = 0.0
+                db = 0.0
+            dc = dep0 - da * x0 - db * y0
+            # nearness = -depth
+            da = -da
+            db = -db
+            dc = -dc
+            de = 0.0
+        else:
+            # Exact: 1/t = (n_l · d) / c with n_l the element normal in the local frame.
+            nlx = t1x * enrm[e, 0] + t1y * enrm[e, 1] + t1z * enrm[e, 2]
+            nly = t2x * enrm[e, 0] + t2y * enrm[e, 1] + t2z * enrm[e, 2]
+            nlz = snx * enrm[e, 0] + sny * enrm[e, 1] + snz * enrm[e, 2]
+            da = nlx / c
+            db = nly / c
+            de = nlz / c
+            dc = 0.0
+        # --- even-odd scanline fill --------------------------------------------------------
+        cov = 0
+        for j in range(j0, j1 + 1):
+            yc = centre[j]
+            nc = 0
+            for a in range(mm):
+                b = a + 1 if a + 1 < mm else 0
+                ya = ys[a]
+                yb = ys[b]
+                if ya < yb:
+                    if ya <= yc < yb:
+                        xcross[nc] = xs[a] + (yc - ya) * (xs[b] - xs[a]) / (yb - ya)
+                        nc += 1
+                elif yb < ya:
+                    if yb <= yc < ya:
+                        xcross[nc] = xs[b] + (yc - yb) * (xs[a] - xs[b]) / (ya - yb)
+                        nc += 1
+            if nc < 2:
+                continue
+            for a in range(1, nc):  # insertion sort: nc is almost always 2
+                x = xcross[a]
+                b = a - 1
+                while b >= 0 and xcross[b] > x:
+                    xcross[b + 1] = xcross[b]
+                    b -= 1
+                xcross[b + 1] = x
+            row = j * r
+            rowterm = db * yc + dc
+            for a in range(0, nc - 1, 2):
+                i_lo = max(int(np.ceil((xcross[a] + 1.0) * half_r - 0.5)), 0)
+                i_hi = min(int(np.ceil((xcross[a + 1] + 1.0) * half_r - 0.5)) - 1, r - 1)
+                for i in range(i_lo, i_hi + 1):
+                    idx = row + i
+                    dzv = dz[idx]
+                    if dzv < 0.0:
+                        continue
+                    cov += 1
+                    near = da * centre[i] + rowterm + de * dzv
+                    if near > zbuf[idx]:
+                        zbuf[idx] = near
+                        item[idx] = e
+        covered[e] = cov
+    for k in range(r * r):
+        if item[k] >= 0:
+            won[item[k]] += 1
+
+
+@jit
+def hemisphere_shots(points, normals, vertices, elem_verts, resolution, edge_angle,
+                     plane_depth, horizon_eps):
+    """Hemisphere-base item buffer from each shooting point to all elements (DESIGN §2).
+
+    Parameters
+    ----------
+    points : (S, 3) float64
+        Positions of the differential shooting areas.
+    normals : (S, 3) float64
+        Their unit normals.
+    vertices : (V, 3) float64
+    elem_verts : (E, 4) int32
+        Corner indices, counter-clockwise seen from the lit side (planar convex polygons);
+        ``-1`` in column 3 for a triangle.
+    resolution : int
+        Side ``R`` of the item buffer over ``[-1, 1]²``.
+    edge_angle : float
+        Threshold angle, **radians**, each polyline piece of a projected edge may subtend
+        (eq. 4).
+    plane_depth : bool
+        Depth by the paper's eq. 5 instead of the exact ray–plane distance.
+    horizon_eps : float
+        Clip height above the tangent plane, relative to the scene's bounding-box diagonal.
+
+    Returns
+    -------
+    won : (S, E) int32
+        Pixels each element owns after hidden-surface removal; ``F = won / n_disc``.
+    covered : (S, E) int32
+        Disc pixels each element covers before the depth test (``won <= covered``).
+    n_disc : int
+        Pixel centres inside the unit circle; every disc pixel weighs ``1/n_disc``, so the
+        weights sum to exactly 1 (``Σ_j F_j <= 1``, ``= 1`` in a closed scene).
+    """
+    n_shot = points.shape[0]
+    n_elem = elem_verts.shape[0]
+    n_vert = vertices.shape[0]
+    r = resolution
+    enrm, eoff = element_planes(vertices, elem_verts)
+    hz = max(horizon_eps * scene_diagonal(vertices), 1e-300)
+    centre, dz, n_disc = disc_pixels(r)
+    # Buffers allocated once per call, reused by every shot and element.
+    item = np.empty(r * r, dtype=np.int32)
+    zbuf = np.empty(r * r)
+    lx = np.empty(n_vert)
+    ly = np.empty(n_vert)
+    lz = np.empty(n_vert)
+    # A straight edge subtends < 180°: at most ceil(π/thr) pieces, plus the two spikes of a
+    # horizon edge; a clipped quad has at most 5 edges.
+    per_edge = int(np.ceil(np.pi / edge_angle)) + 3
+    cap = 5 * per_edge + 8
+    xs = np.empty(cap)
+    ys = np.empty(cap)
+    xcross = np.empty(cap)
+    won = np.zeros((n_shot, n_elem), dtype=np.int32)
+    covered = np.zeros((n_shot, n_elem), dtype=np.int32)
+    cos_thr = np.cos(edge_angle)
+    for s in range(n_shot):
+        _shoot(points[s, 0], points[s, 1], points[s, 2],
+               normals[s, 0], normals[s, 1], normals[s, 2],
+               vertices, elem_verts, enrm, eoff, hz, r, centre, dz, cos_thr, edge_angle,
+               plane_depth, lx, ly, lz, item, zbuf, xs, ys, xcross, won[s], covered[s])
+    return won, covered, n_disc
