@@ -116,7 +116,11 @@ def read_mesh(path: Path):
     except SceneError:
         raise
     except Exception as err:  # noqa: BLE001 - any failure inside trimesh is a bad file
-        detail = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        text = str(err).strip()
+        if isinstance(err, ImportError) or not text:
+            # trimesh reaches for optional modules when it guesses at garbage: say what it is
+            text = "unrecognized content"
+        detail = text.splitlines()[0][:200]
         raise SceneError(f"cannot read {file_type.upper()} file: {detail}", path) from None
     finally:
         log.setLevel(level)

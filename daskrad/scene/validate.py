@@ -183,6 +183,8 @@ def scene_from_arrays(
     )
 
     diag = scale_of(v, poly)
+    if not np.isfinite(diag**2):
+        raise SceneError("coordinates are too large (the bounding box overflows float64)", path)
     # a quad that is not planar and convex is split into two triangles, as a file's would be
     quad = poly[:, 3] >= 0
     if quad.any():
