@@ -153,6 +153,7 @@ def read_obj(path: Path) -> ObjData:
     face_mtl: list[str | None] = []
     libraries: dict[str, MtlMaterial] = {}
     used: dict[str | None, int] = {}
+    usemtl_line: dict[str | None, int] = {}
     current: str | None = None
     for lineno, raw in enumerate(text.splitlines(), start=1):
         parts = raw.split("#", 1)[0].split()
@@ -172,12 +173,7 @@ def read_obj(path: Path) -> ObjData:
             used.setdefault(current, len(used))
         elif key == "usemtl":
             current = " ".join(parts[1:]) or None
-            if current is not None and current not in libraries:
-                raise SceneError(
-                    f"line {lineno}: material {current!r} is not defined"
-                    + (" (no mtllib before it)" if not libraries else " in the mtllib files"),
-                    path,
-                )
+            usemtl_line.setdefault(current, lineno)
         elif key == "mtllib":
             names = parts[1:]
             if not names:
@@ -190,6 +186,14 @@ def read_obj(path: Path) -> ObjData:
 
     if not face_tokens:
         raise SceneError("no faces in the file", path)
+    # checked after the loop: trimesh (and other readers) accept mtllib anywhere in the file
+    for name in used:
+        if name is not None and name not in libraries:
+            raise SceneError(
+                f"line {usemtl_line[name]}: material {name!r} is not defined"
+                + (" (no mtllib line)" if not libraries else " in the mtllib files"),
+                path,
+            )
     try:
         verts = np.array(vert_rows, dtype=np.float64)
     except ValueError:
