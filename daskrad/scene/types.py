@@ -46,7 +46,10 @@ class Materials:
 
 @dataclass(frozen=True)
 class PointLights:
-    """Isotropic point lights. ``position : (L, 3) float64``, ``intensity : (L, 3) float64`` W/sr."""
+    """Isotropic point lights.
+
+    ``position : (L, 3) float64``; ``intensity : (L, 3) float64``, W/sr per RGB channel.
+    """
 
     position: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     intensity: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))

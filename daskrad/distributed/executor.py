@@ -1,0 +1,52 @@
+"""Executors: where the pipeline's tasks run.
+
+Both executors expose the same three calls, so the pipeline is written once:
+
+- ``shots(batch_no, patch_ids)`` → handle with ``.result()`` = rows of
+  :func:`daskrad.shoot.shoot_rows`;
+- ``tiles(tiles)`` → list of tile images of :func:`daskrad.render.render_tile`, in order;
+- ``close()``.
+
+:class:`InProcess` runs every task at once in this process (``--workers 0``; tiny scenes need no
+cluster: starting one costs seconds).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from daskrad import render, shoot
+
+
+class _Done:
+    """A finished handle, like a completed future."""
+
+    __slots__ = ("value",)
+
+    def __init__(self, value):
+        self.value = value
+
+    def result(self):
+        return self.value
+
+
+class InProcess:
+    """Runs tasks in the calling process with the same functions the workers run."""
+
+    workers = 0
+    dashboard_link = None
+
+    def __init__(self, shoot_ctx: shoot.ShootContext | None = None):
+        self.shoot_ctx = shoot_ctx
+
+    def set_geometry(self, shoot_ctx: shoot.ShootContext) -> None:
+        self.shoot_ctx = shoot_ctx
+
+    def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Done:
+        return _Done(shoot.shoot_rows(self.shoot_ctx, patch_ids))
+
+    def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
+        return [render.render_tile(ctx, rows, cols) for rows, cols in tiles]
+
+    def close(self) -> None:
+        pass

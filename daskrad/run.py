@@ -1,0 +1,214 @@
+"""The pipeline on one screen: load → mesh → direct → solve → render → write (DESIGN §1)."""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from daskrad import render, shoot, solve
+from daskrad.errors import OptionError
+from daskrad.io import write_exr, write_png, write_report
+from daskrad.kernels.grid import build_grid
+from daskrad.mesh import build_hierarchy, default_sizes, hierarchy_triangles, vertex_average
+from daskrad.scene import load_scene
+from daskrad.settings import Settings
+
+
+def run(scene_path, output, settings: Settings, progress: bool = True,
+        config=None) -> dict:
+    """Solve and render ``scene_path``; write ``output`` (.exr), .png and .json beside it.
+
+    Returns the run report (also written as JSON).
+    """
+    output = Path(output)
+    if output.suffix.lower() != ".exr":
+        raise OptionError(f"the output must end in .exr, got {output.name}")
+    if not output.parent.is_dir():
+        raise OptionError(f"no such directory for the output: {output.parent}")
+    seconds: dict[str, float] = {}
+    t = time.perf_counter()
+
+    scene = load_scene(scene_path, config)                                   # 1 preprocess
+    executor = _executor(settings)
+    try:
+        bar = _Bar(settings, enabled=progress)
+        h, reflectance, sol, grid_parts = solve_scene(scene, settings, executor, seconds,
+                                                      on_batch=bar)       # 2 direct, 3 shoot
+        bar.close()
+        t = time.perf_counter()
+        tris, tri_verts, tri_elem, grid = grid_parts
+        amb = solve.ambient(h, reflectance, sol.unshot)                      # 4 per-pixel pass
+        shown = sol.radiosity + reflectance * amb
+        camera = _camera(scene, settings)
+        ctx = render.RenderContext(grid=grid, tri_verts=tri_verts, tri_element=tri_elem,
+                                   elem_normal=h.elem_normal,
+                                   vertex_radiance=vertex_average(h, shown) / math.pi,
+                                   camera=camera, spp=settings.spp)
+        tiles = render.tiles(camera.width, camera.height)
+        image = np.zeros((camera.height, camera.width, 3))
+        for (rows, cols), tile in zip(tiles, executor.tiles(ctx, tiles), strict=True):
+            image[rows, cols] = tile
+        seconds["render"], t = time.perf_counter() - t, time.perf_counter()
+    finally:
+        executor.close()
+
+    write_exr(output, image)                                                 # 5 output
+    write_png(output.with_suffix(".png"), image)
+    report = {
+        "scene": str(scene_path),
+        "output": str(output),
+        "counts": {"polygons": len(scene.polygons), "patches": h.n_patches,
+                   "elements": h.n_elements, "vertices": len(h.vertices),
+                   "emitters": int(scene.emitting.sum()),
+                   "point_lights": len(scene.point_lights),
+                   "directional_lights": len(scene.directional_lights),
+                   "dropped_degenerate": scene.dropped_degenerate},
+        "iterations": sol.iteration,
+        "converged": sol.converged,
+        "unshot_rms_history": [
+            {"iteration": i, "relative_unshot_rms": r, "seconds": s} for i, r, s in sol.history],
+        "ambient": amb,
+        "seconds": seconds,
+        "workers": executor.workers,
+        "settings": settings.as_dict(),
+        "image": {"width": camera.width, "height": camera.height,
+                  "mean_radiance": image.reshape(-1, 3).mean(axis=0)},
+    }
+    seconds["write"] = time.perf_counter() - t
+    write_report(output.with_suffix(".json"), report)
+    if not sol.converged:
+        print(f"daskrad: warning: not converged after {sol.iteration} shots (relative unshot "
+              f"RMS {sol.history[-1][1] if sol.history else 1.0:.3g} > {settings.tolerance:g});"
+              " the image adds an ambient term", file=sys.stderr)
+    return report
+
+
+def solve_scene(scene, settings: Settings, executor=None, seconds: dict | None = None,
+                on_batch=None):
+    """Steps 1–3 on a loaded scene: hierarchy, grid, emission, shooting.
+
+    Returns ``(hierarchy, reflectance (E, 3), solution, (triangles, tri_verts, tri_element,
+    grid))``. ``executor`` defaults to in-process; ``seconds`` collects step timings.
+    """
+    from daskrad.distributed.executor import InProcess
+
+    seconds = {} if seconds is None else seconds
+    executor = executor or InProcess()
+    t = time.perf_counter()
+    h = build_hierarchy(scene, settings.patch_size, settings.element_size)
+    tris, tri_verts, tri_elem = hierarchy_triangles(h)
+    grid = build_grid(tris)
+    mat = h.elem_material
+    reflectance = scene.materials.diffuse[mat]
+    emission = math.pi * scene.materials.emission[mat]         # Ke is radiance; exitance = πKe
+    seconds["preprocess"], t = time.perf_counter() - t, time.perf_counter()
+
+    sol = solve.initial_solution(h, emission)
+    executor.set_geometry(shoot.make_context(h, settings.method, settings.resolution,
+                                             edge_angle=settings.edge_angle))
+    sol = solve.solve(h, reflectance, sol, executor.shots, batch=settings.batch,
+                      tolerance=settings.tolerance, max_iterations=settings.max_iterations,
+                      on_batch=on_batch)
+    seconds["solve"] = time.perf_counter() - t
+    return h, reflectance, sol, (tris, tri_verts, tri_elem, grid)
+
+
+def _executor(settings: Settings):
+    from daskrad.distributed.executor import InProcess
+
+    if settings.workers == 0 and settings.scheduler is None:
+        return InProcess()
+    from daskrad.distributed import connect
+
+    return connect(settings)
+
+
+def _camera(scene, settings: Settings):
+    cam = scene.camera or render.default_camera(scene.bounds)
+    width = settings.width or cam.width
+    height = settings.height or cam.height
+    return type(cam)(eye=cam.eye, look_at=cam.look_at, up=cam.up, fov=cam.fov,
+                     width=width, height=height)
+
+
+class _Bar:
+    """Progress: shots done and the relative unshot RMS against the tolerance (tqdm, stderr)."""
+
+    def __init__(self, settings: Settings, enabled: bool):
+        self.enabled = enabled
+        self.tolerance = settings.tolerance
+        self.bar = None
+        if enabled:
+            from tqdm import tqdm
+
+            # the bar counts decades of unshot RMS reduction: 0 → log10(1/tolerance)
+            self.total = max(1e-9, math.log10(1.0 / settings.tolerance))
+            self.bar = tqdm(total=round(self.total, 2), desc="shooting", unit="dec",
+                            bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}",
+                            file=sys.stderr)
+
+    def __call__(self, sol: solve.Solution) -> None:
+        if self.bar is None or not sol.history:
+            return
+        it, rms, sec = sol.history[-1]
+        done = min(self.total, math.log10(1.0 / max(rms, 1e-300)))
+        self.bar.n = round(max(0.0, done), 2)
+        self.bar.set_postfix_str(f"shot {it}, unshot {rms:.2e}, {sec:.1f}s", refresh=True)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def settings_from_args(args) -> Settings:
+    """Settings from the CLI's namespace: options not given keep their defaults."""
+    fields = Settings.__dataclass_fields__
+    given = {k: v for k, v in vars(args).items()
+             if k in fields and v is not None}
+    if given.get("scheduler") is not None:
+        given["workers"] = 0
+    elif "workers" not in given:
+        given["workers"] = Settings.workers
+    return Settings(**given)
+
+
+def run_cli(args) -> None:
+    settings = settings_from_args(args)
+    output = args.output or str(Path(args.scene).with_suffix(".exr").name)
+    run(args.scene, output, settings, progress=not args.quiet, config=args.config)
+    print(f"wrote {output}, {Path(output).with_suffix('.png')}, "
+          f"{Path(output).with_suffix('.json')}")
+
+
+def info_text(args) -> str:
+    """``daskrad info``: the hierarchy, emitters and lights, bounding box and grid size."""
+    scene = load_scene(args.scene, args.config)
+    h = build_hierarchy(scene, args.patch_size, args.element_size)
+    patch_size, element_size = (args.patch_size or default_sizes(scene)[0],
+                                args.element_size or default_sizes(scene)[1])
+    tris, _, _ = hierarchy_triangles(h)
+    grid = build_grid(tris)
+    lo, hi = scene.bounds
+    quads = int((scene.polygons[:, 3] >= 0).sum())
+    lines = [
+        f"scene       {scene.path}",
+        f"polygons    {len(scene.polygons)} ({quads} quads, {len(scene.polygons) - quads} "
+        "triangles)" + (f", {scene.dropped_degenerate} degenerate dropped"
+                        if scene.dropped_degenerate else ""),
+        f"patches     {h.n_patches} (edge <= {patch_size:.4g})",
+        f"elements    {h.n_elements} (edge <= {element_size:.4g})",
+        f"vertices    {len(h.vertices)}",
+        f"materials   {len(scene.materials)}: {', '.join(scene.materials.names)}",
+        f"emitters    {int(scene.emitting.sum())} polygons",
+        f"lights      {len(scene.point_lights)} point, {len(scene.directional_lights)} "
+        "directional",
+        f"bounds      [{lo[0]:.4g}, {lo[1]:.4g}, {lo[2]:.4g}] .. "
+        f"[{hi[0]:.4g}, {hi[1]:.4g}, {hi[2]:.4g}]",
+        f"grid        {grid.dims[0]} x {grid.dims[1]} x {grid.dims[2]} cells over "
+        f"{len(tris)} triangles",
+    ]
+    return "\n".join(lines)

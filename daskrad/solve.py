@@ -1,0 +1,227 @@
+"""Step 3: progressive refinement shooting (Cohen et al. 1988, with Doi's form factors).
+
+The client owns two arrays and is the only one to change them:
+
+- ``radiosity : (E, 3) float64``, total radiosity ``B`` (exitance, W/m²) of every element,
+  emission included;
+- ``unshot : (P, 3) float64``, unshot radiosity ``ΔB`` of every patch.
+
+A shot from patch ``i`` with form factors ``F_ij`` (from the shooter to element ``j``) adds, for
+every element ``j`` (DESIGN §4)::
+
+    ΔB_j = ρ_j · ΔB_i · F_ij · A_i / A_j
+
+to ``B_j`` and ``ΔB_j · A_j / A_p`` to the unshot radiosity of ``j``'s patch ``p``, then sets
+``ΔB_i = 0``. Form factors depend only on geometry, so they can be computed ahead of time by any
+number of workers (:func:`daskrad.shoot.shoot_rows`); the updates are applied here, in order.
+
+Batches: the next batch is the ``K`` patches with the largest unshot *power*
+``Σ_rgb ΔB_p · A_p``, chosen from the state after the previous-but-one batch was applied and
+excluding the batch still in flight. The rule depends only on the solution state, never on
+timing, so the result is the same bits whether the rows come from this process or from 8
+workers; it lets the next batch be computed while the client applies the last one.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from daskrad.mesh.types import Hierarchy
+
+
+@dataclass
+class Solution:
+    """The state of the solver; everything a checkpoint must hold.
+
+    Attributes
+    ----------
+    radiosity : (E, 3) float64
+        Total radiosity ``B`` per element (W/m² of the scene's unit), emission included.
+    direct : (E, 3) float64
+        The part of ``B`` that is emission plus first-bounce direct light (set by the direct
+        pass; emission only when emitters are shot like any patch).
+    unshot : (P, 3) float64
+        Unshot radiosity per patch.
+    initial_rms : float
+        RMS unshot radiosity before the first shot (convergence is relative to it).
+    iteration : int
+        Shots applied so far.
+    history : list of (iteration, relative unshot RMS, seconds since start)
+    converged : bool
+    """
+
+    radiosity: np.ndarray
+    direct: np.ndarray
+    unshot: np.ndarray
+    initial_rms: float
+    iteration: int = 0
+    history: list = field(default_factory=list)
+    converged: bool = False
+    seconds: float = 0.0
+    queued: list = field(default_factory=list)
+    """Shooter ids of the batches chosen but not yet applied, in order. A checkpoint keeps
+    them so a resumed run applies exactly the batches the uninterrupted run would have."""
+
+
+def unshot_rms(unshot: np.ndarray, patch_area: np.ndarray) -> float:
+    """Area-weighted RMS of the unshot radiosity over patches and channels."""
+    total = patch_area.sum()
+    if total <= 0:
+        return 0.0
+    return float(np.sqrt((patch_area[:, None] * unshot**2).sum() / (3.0 * total)))
+
+
+def initial_solution(h: Hierarchy, emission: np.ndarray, reflected: np.ndarray | None = None
+                     ) -> Solution:
+    """Start state: ``B = E + reflected direct``, unshot = what has not been shot yet.
+
+    Parameters
+    ----------
+    emission : (E, 3) float64
+        Exitance ``π · Ke`` per element.
+    reflected : (E, 3) float64, optional
+        Reflected direct light ``ρ · H_direct`` per element, computed by the direct pass. When
+        given, emitters are not shot (their light has been gathered) and unshot starts as the
+        reflected part only; otherwise emitters are shot like any patch.
+    """
+    if reflected is None:
+        shot_source = emission
+        direct = emission.copy()
+    else:
+        shot_source = reflected
+        direct = emission + reflected
+    radiosity = direct.copy()
+    unshot = patch_average(h, shot_source)
+    return Solution(radiosity=radiosity, direct=direct, unshot=unshot,
+                    initial_rms=unshot_rms(unshot, h.patch_area))
+
+
+def patch_average(h: Hierarchy, elem_values: np.ndarray) -> np.ndarray:
+    """Area-weighted average over each patch's elements: ``(E, 3) → (P, 3)``.
+
+    ``np.bincount`` sums in element order, so the result is deterministic.
+    """
+    weighted = elem_values * h.elem_area[:, None]
+    out = np.empty((h.n_patches, elem_values.shape[1]))
+    for c in range(elem_values.shape[1]):
+        out[:, c] = np.bincount(h.elem_patch, weights=weighted[:, c], minlength=h.n_patches)
+    return out / h.patch_area[:, None]
+
+
+def ambient(h: Hierarchy, reflectance: np.ndarray, unshot: np.ndarray) -> np.ndarray:
+    """Cohen et al.'s ambient term for displaying an unconverged solution, ``(3,)`` W/m².
+
+    ``ambient = Σ_p ΔB_p A_p / Σ A_p · 1/(1 − ρ_avg)``; the image adds ``ρ_j · ambient``.
+    """
+    total = h.patch_area.sum()
+    rho_avg = (reflectance * h.elem_area[:, None]).sum(axis=0) / total
+    mean_unshot = (unshot * h.patch_area[:, None]).sum(axis=0) / total
+    return mean_unshot / np.maximum(1.0 - rho_avg, 1e-6)
+
+
+def next_batch(unshot: np.ndarray, patch_area: np.ndarray, k: int,
+               exclude: np.ndarray | None = None) -> np.ndarray:
+    """The ``k`` patches with the largest unshot power, largest first; ties by patch id.
+
+    Patches with zero unshot power are never chosen. ``exclude`` (patch ids already in flight)
+    are skipped.
+    """
+    power = unshot.sum(axis=1) * patch_area
+    if exclude is not None and len(exclude):
+        power = power.copy()
+        power[exclude] = 0.0
+    k = min(k, int(np.count_nonzero(power > 0)))
+    if k == 0:
+        return np.zeros(0, np.int64)
+    # stable sort on -power: equal powers are taken in patch-id order, whatever the platform
+    order = np.argsort(-power, kind="stable")[:k]
+    return order
+
+
+def apply_shot(h: Hierarchy, reflectance: np.ndarray, sol: Solution, shooter: int,
+               ids: np.ndarray, factors: np.ndarray) -> None:
+    """Apply one shot in place: distribute the shooter's unshot radiosity over ``ids``.
+
+    ``factors[k]`` is ``F_ij`` from shooter patch ``i`` to element ``ids[k]``, with
+    ``Σ factors ≤ 1`` (guaranteed by the form-factor task), so a shot never sends more energy
+    than the shooter holds.
+    """
+    dB = sol.unshot[shooter].copy()
+    sol.unshot[shooter] = 0.0
+    if len(ids):
+        scale = factors * (h.patch_area[shooter] / h.elem_area[ids])
+        delta = reflectance[ids] * (scale[:, None] * dB[None, :])
+        sol.radiosity[ids] += delta
+        patches = h.elem_patch[ids]
+        weights = h.elem_area[ids] / h.patch_area[patches]
+        for c in range(3):
+            sol.unshot[:, c] += np.bincount(patches, weights=delta[:, c] * weights,
+                                            minlength=h.n_patches)
+    sol.iteration += 1
+
+
+# A batch executor takes (batch number, shooter patch ids) and returns a handle whose
+# result() is a list of (ids, factors) rows, one per shooter, in the same order.
+Submit = Callable[[int, np.ndarray], object]
+
+
+def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, *,
+          batch: int, tolerance: float, max_iterations: int,
+          on_batch: Callable[[Solution], None] | None = None) -> Solution:
+    """Shoot until the relative unshot RMS is below ``tolerance`` or ``max_iterations`` shots.
+
+    ``submit(n, patch_ids)`` starts the form-factor work of batch ``n`` and returns a handle
+    with ``.result()``; in-process it computes at once, with Dask it is a future. Two batches
+    are in flight: batch ``n + 1`` is chosen (excluding batch ``n``'s shooters) before batch
+    ``n`` is applied. ``on_batch`` runs after each applied batch (progress, checkpoints).
+    """
+    start = time.perf_counter() - sol.seconds
+    reference = sol.initial_rms if sol.initial_rms > 0 else 1.0
+
+    def done() -> bool:
+        return (unshot_rms(sol.unshot, h.patch_area) / reference <= tolerance
+                or sol.iteration >= max_iterations)
+
+    batch_no = len(sol.history) + len(sol.queued)
+    # batches already chosen before a checkpoint are submitted again, in their order
+    pending: list[tuple[np.ndarray, object]] = [
+        (np.asarray(ids, np.int64), submit(len(sol.history) + n, np.asarray(ids, np.int64)))
+        for n, ids in enumerate(sol.queued)
+    ]
+
+    def queue(exclude):
+        nonlocal batch_no
+        room = max_iterations - sol.iteration - sum(len(p) for p, _ in pending)
+        ids = next_batch(sol.unshot, h.patch_area, min(batch, room), exclude)
+        if len(ids):
+            pending.append((ids, submit(batch_no, ids)))
+            batch_no += 1
+
+    if not done() and not pending:
+        queue(None)
+    while pending:
+        ids, handle = pending.pop(0)
+        if not done():
+            queue(ids)          # the next batch computes while this one is applied
+        rows = handle.result()
+        for shooter, (elem_ids, factors) in zip(ids, rows, strict=True):
+            if done():
+                break
+            apply_shot(h, reflectance, sol, int(shooter), elem_ids, factors)
+        rms = unshot_rms(sol.unshot, h.patch_area) / reference
+        sol.seconds = time.perf_counter() - start
+        sol.history.append((sol.iteration, rms, sol.seconds))
+        if done():
+            # drop the work in flight: it was chosen from a state that is now final
+            pending.clear()
+        elif not pending:
+            queue(None)
+        sol.queued = [ids.tolist() for ids, _ in pending]
+        if on_batch is not None:
+            on_batch(sol)
+    sol.converged = unshot_rms(sol.unshot, h.patch_area) / reference <= tolerance
+    return sol
