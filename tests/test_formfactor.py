@@ -438,6 +438,10 @@ def test_methods_registry_and_errors():
         ff.point_to_elements(ORIGIN, UP, verts, elems, depth="zbuffer")
     with pytest.raises(OptionError):
         ff.point_to_elements(ORIGIN, UP, verts, elems, frobnicate=1)
+    with pytest.raises(OptionError):
+        ff.shooter_rows(ORIGIN, UP, verts, elems, "analytic", frobnicate=1)
+    # the raster options of the run settings are accepted (and ignored) by "analytic"
+    assert ff.shooter_rows(ORIGIN, UP, verts, elems, "analytic", edge_angle=1.0)[0, 0] > 0.2
     with pytest.raises(SceneError):
         ff.point_to_elements(ORIGIN, [0, 0, 0], verts, elems)
     with pytest.raises(SceneError):

@@ -132,8 +132,12 @@ def hemisphere_rows(points, normals, vertices, elem_verts, resolution=256, **opt
 
 
 def analytic_rows(points, normals, vertices, elem_verts, resolution=None, **options):
-    """``(S, E) float64``: Lambert's contour formula, no occlusion; ``resolution`` is ignored."""
-    _check_options(options, ())
+    """``(S, E) float64``: Lambert's contour formula, no occlusion.
+
+    ``resolution`` and the raster options (``edge_angle``, ``depth``) are accepted and ignored,
+    so one set of run settings works with every method; other options are refused.
+    """
+    _check_options(options, ("edge_angle", "depth"))
     points, normals, vertices, elem_verts = _prepare(points, normals, vertices, elem_verts)
     return lambert_shots(points, normals, vertices, elem_verts)
 
