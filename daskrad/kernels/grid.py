@@ -262,50 +262,75 @@ def build_grid(
 
 
 @jit
-def _intersect(tri, ox, oy, oz, dx, dy, dz, tmin, tmax, eps):
-    """Möller–Trumbore with an edge tolerance: ``(hit, t, u, v)`` for ``tmin < t < tmax``.
+def _intersect(tris, k, ox, oy, oz, dx, dy, dz, tmin, tmax, eps):
+    """Möller–Trumbore on triangle ``tris[k]`` with an edge tolerance: ``(hit, t, u, v)`` for
+    ``tmin < t < tmax``.
 
     A hit point outside the triangle by at most ``eps`` (distance in its plane from the
     nearest edge line) still counts: the barycentric of the vertex opposite an edge is the
     distance from that edge's line over the triangle's height there, ``|n| / |edge|``.
     """
-    v0x, v0y, v0z = tri[0, 0], tri[0, 1], tri[0, 2]
-    e1x, e1y, e1z = tri[1, 0] - v0x, tri[1, 1] - v0y, tri[1, 2] - v0z
-    e2x, e2y, e2z = tri[2, 0] - v0x, tri[2, 1] - v0y, tri[2, 2] - v0z
+    miss = (False, np.inf, 0.0, 0.0)
+    # Scalar reads, no per-triangle array view (a view per test costs more than the test).
+    v0x, v0y, v0z = tris[k, 0, 0], tris[k, 0, 1], tris[k, 0, 2]
+    e1x, e1y, e1z = tris[k, 1, 0] - v0x, tris[k, 1, 1] - v0y, tris[k, 1, 2] - v0z
+    e2x, e2y, e2z = tris[k, 2, 0] - v0x, tris[k, 2, 1] - v0y, tris[k, 2, 2] - v0z
     px = dy * e2z - dz * e2y
     py = dz * e2x - dx * e2z
     pz = dx * e2y - dy * e2x
     det = e1x * px + e1y * py + e1z * pz
     if det == 0.0:  # ray parallel to the plane (or a degenerate triangle)
-        return False, np.inf, 0.0, 0.0
+        return miss
     inv = 1.0 / det
+    dd = dx * dx + dy * dy + dz * dz
+    # Near-edge test: reject when even the lower bound |n| >= |det| / |d| (det = -d·n) puts the
+    # point beyond eps, which settles almost every miss without |n|² = |e1 × e2|²; compute
+    # |n|² only for points near an edge (nn < 0: not yet computed).
+    nn = -1.0
     sx, sy, sz = ox - v0x, oy - v0y, oz - v0z
     u = (sx * px + sy * py + sz * pz) * inv
+    if u < 0.0:
+        ee = e2x * e2x + e2y * e2y + e2z * e2z
+        if u * u * det * det > eps * eps * dd * ee:
+            return miss
+        nn = _cross_norm2(e1x, e1y, e1z, e2x, e2y, e2z)
+        if u * u * nn > eps * eps * ee:
+            return miss
     qx = sy * e1z - sz * e1y
     qy = sz * e1x - sx * e1z
     qz = sx * e1y - sy * e1x
     v = (dx * qx + dy * qy + dz * qz) * inv
-    t = (e2x * qx + e2y * qy + e2z * qz) * inv
-    if not (t > tmin and t < tmax):
-        return False, np.inf, 0.0, 0.0
+    if v < 0.0:
+        ee = e1x * e1x + e1y * e1y + e1z * e1z
+        if v * v * det * det > eps * eps * dd * ee:
+            return miss
+        if nn < 0.0:
+            nn = _cross_norm2(e1x, e1y, e1z, e2x, e2y, e2z)
+        if v * v * nn > eps * eps * ee:
+            return miss
     w = 1.0 - u - v
-    if u >= 0.0 and v >= 0.0 and w >= 0.0:
-        return True, t, u, v
-    # Near an edge: compare squared distances from each edge line with eps².
-    nx = e1y * e2z - e1z * e2y
-    ny = e1z * e2x - e1x * e2z
-    nz = e1x * e2y - e1y * e2x
-    nn = nx * nx + ny * ny + nz * nz
-    e2 = eps * eps
-    if u < 0.0 and u * u * nn > e2 * (e2x * e2x + e2y * e2y + e2z * e2z):
-        return False, np.inf, 0.0, 0.0
-    if v < 0.0 and v * v * nn > e2 * (e1x * e1x + e1y * e1y + e1z * e1z):
-        return False, np.inf, 0.0, 0.0
     if w < 0.0:
         fx, fy, fz = e2x - e1x, e2y - e1y, e2z - e1z
-        if w * w * nn > e2 * (fx * fx + fy * fy + fz * fz):
-            return False, np.inf, 0.0, 0.0
+        ee = fx * fx + fy * fy + fz * fz
+        if w * w * det * det > eps * eps * dd * ee:
+            return miss
+        if nn < 0.0:
+            nn = _cross_norm2(e1x, e1y, e1z, e2x, e2y, e2z)
+        if w * w * nn > eps * eps * ee:
+            return miss
+    t = (e2x * qx + e2y * qy + e2z * qz) * inv
+    if not (t > tmin and t < tmax):
+        return miss
     return True, t, u, v
+
+
+@jit
+def _cross_norm2(ax, ay, az, bx, by, bz):
+    """``|a × b|²``."""
+    cx = ay * bz - az * by
+    cy = az * bx - ax * bz
+    cz = ax * by - ay * bx
+    return cx * cx + cy * cy + cz * cz
 
 
 # ------------------------------------------------------------------------------------------
@@ -372,15 +397,15 @@ def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode):
     k, sk, ok = _start(oz, dz, t0, origin[2], cell[2], nz)
     cell_start, cell_items, tris, eps = grid.cell_start, grid.cell_items, grid.triangles, grid.eps
     best_t, best_tri, best_u, best_v = tmax, -1, 0.0, 0.0
+    tx = _next_t(ox, dx, i, oi, origin[0], cell[0])
+    ty = _next_t(oy, dy, j, oj, origin[1], cell[1])
+    tz = _next_t(oz, dz, k, ok, origin[2], cell[2])
     while True:
-        tx = _next_t(ox, dx, i, oi, origin[0], cell[0])
-        ty = _next_t(oy, dy, j, oj, origin[1], cell[1])
-        tz = _next_t(oz, dz, k, ok, origin[2], cell[2])
         t_exit = min(tx, ty, tz)
         c = (k * ny + j) * nx + i
         for m in range(cell_start[c], cell_start[c + 1]):
             tri = cell_items[m]
-            hit, t, u, v = _intersect(tris[tri], ox, oy, oz, dx, dy, dz, tmin, best_t, eps)
+            hit, t, u, v = _intersect(tris, tri, ox, oy, oz, dx, dy, dz, tmin, best_t, eps)
             if hit:
                 if any_mode:
                     return t, tri, u, v
@@ -393,14 +418,17 @@ def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode):
             i += si
             if i < 0 or i >= nx:
                 break
+            tx = _next_t(ox, dx, i, oi, origin[0], cell[0])
         elif ty <= tz:
             j += sj
             if j < 0 or j >= ny:
                 break
+            ty = _next_t(oy, dy, j, oj, origin[1], cell[1])
         else:
             k += sk
             if k < 0 or k >= nz:
                 break
+            tz = _next_t(oz, dz, k, ok, origin[2], cell[2])
     if best_tri < 0:
         return miss
     return best_t, best_tri, best_u, best_v
@@ -428,7 +456,7 @@ def closest_hit_brute_one(grid, o, d, tmin, tmax):
     tris, eps = grid.triangles, grid.eps
     best_t, best_tri, best_u, best_v = tmax, -1, 0.0, 0.0
     for k in range(tris.shape[0]):
-        hit, t, u, v = _intersect(tris[k], o[0], o[1], o[2], d[0], d[1], d[2], tmin, best_t, eps)
+        hit, t, u, v = _intersect(tris, k, o[0], o[1], o[2], d[0], d[1], d[2], tmin, best_t, eps)
         if hit:
             best_t, best_tri, best_u, best_v = t, k, u, v
     if best_tri < 0:
@@ -441,7 +469,7 @@ def any_hit_brute_one(grid, o, d, tmin, tmax):
     """:func:`any_hit_one` by testing every triangle."""
     tris, eps = grid.triangles, grid.eps
     for k in range(tris.shape[0]):
-        if _intersect(tris[k], o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, eps)[0]:
+        if _intersect(tris, k, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, eps)[0]:
             return True
     return False
 
