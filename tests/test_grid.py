@@ -325,6 +325,28 @@ def test_barycentrics_and_units():
     assert not G.any_hit(grid, o[:1], d[:1], 2.0, 3.0)[0]
 
 
+def test_single_ray_functions_are_callable_from_other_kernels(rng):
+    # Renderer, ray-cast form factors and direct light call the single-ray functions inside
+    # their own numba loops, passing the Grid NamedTuple through.
+    from numba import njit
+
+    @njit
+    def first_hits(grid, o, d):
+        tri = np.empty(o.shape[0], dtype=np.int64)
+        blocked = np.empty(o.shape[0], dtype=np.bool_)
+        for r in range(o.shape[0]):
+            tri[r] = G.closest_hit_one(grid, o[r], d[r], 0.0, np.inf)[1]
+            blocked[r] = G.any_hit_one(grid, o[r], d[r], 0.0, 1.0)
+        return tri, blocked
+
+    grid = G.build_grid(soup(rng, 200))
+    o, d = rays_random(rng, grid, 500)
+    tri, blocked = first_hits(grid, o, d)
+    np.testing.assert_array_equal(tri, G.closest_hit(grid, o, d, 0.0, np.inf)[1])
+    np.testing.assert_array_equal(blocked, G.any_hit(grid, o, d, 0.0, 1.0))
+    assert (tri >= 0).any() and (tri < 0).any()
+
+
 def test_degenerate_inputs():
     tri = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
     grid = G.build_grid(tri)

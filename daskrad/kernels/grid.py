@@ -528,7 +528,9 @@ def closest_hit(grid: Grid, origins, directions, tmin, tmax):
     tmin, tmax : (n,) float64 (or scalars)
 
     Returns ``t (n,) float64`` (inf on a miss), ``tri (n,) int32`` (-1 on a miss),
-    ``u, v (n,) float64``: barycentrics of vertices 1 and 2 of the hit triangle.
+    ``u, v (n,) float64``: barycentrics of vertices 1 and 2 of the hit triangle,
+    ``P = (1 - u - v) V0 + u V1 + v V2``; a hit within ``eps`` outside an edge has a
+    barycentric slightly below 0 (by at most ``eps`` over the triangle's height there).
     """
     return _closest_batch(grid, *_rays(origins, directions, tmin, tmax), False)
 
