@@ -36,8 +36,9 @@ from daskrad.kernels._jit import jit
 #: Largest number of cells along one axis.
 MAX_DIM = 512
 
-#: Default cells per triangle (λ in the classic heuristic cells ≈ λ·T); chosen by
-#: benchmarks/bench_grid.py as the fastest closest-hit setting on surface-like scenes.
+#: Default cells per triangle (λ in the classic heuristic cells ≈ λ·T). A sweep of λ from 0.5
+#: to 8 on 10k/100k-triangle soups and height fields (bench_grid's scenes) gave speeds within
+#: the machine's noise of each other; 2 was never far from the best on either kind of scene.
 DEFAULT_DENSITY = 2.0
 
 #: The grid's box is the scene's box padded by this fraction of the scene diagonal on every
