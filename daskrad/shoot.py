@@ -5,11 +5,17 @@ of patches"): it reads geometry only and returns small results, so it runs the s
 and on a Dask worker (:mod:`daskrad.distributed` calls :func:`shoot_rows` with a context it
 caches per store generation).
 
-Near field (DESIGN §2): a form factor sampled at one point of the shooter is exact only far
-away. Where some receiver is close relative to the shooter's size, the shooter is sampled at
-``s × s`` stratified points (sub-patch centroids, weighted by sub-patch area) and the rows are
-averaged. Each sample's row sums to at most 1 (the hemisphere's disc weights sum to 1), so the
-average does too: a shot never sends more energy than the shooter holds.
+Near field (DESIGN §2). A form factor sampled at the shooter's centroid is exact only far away:
+for a receiver at distance ``d`` from a shooter of radius ``r`` it errs by O((r/d)²), which is
+the error that dominates flat radiosity along junctions (wall meets ceiling). For receivers
+closer than ``NEAR_FIELD · r`` the shooter is not point-sampled: by reciprocity
+``F_ij = F_ji · A_j / A_i``, and ``F_ji`` — from the receiver's centroid to the *whole* shooter
+polygon — is Lambert's contour integral, exact in the shooter's extent. Occlusion is taken from
+the hemisphere pass at the centroid (the fraction ``won / covered`` of the receiver's pixels
+that are visible). The near receivers' factors are then scaled so that together they take
+exactly the share of energy the hemisphere pass gave them: the row sum stays that of the
+hemisphere (≤ 1, and = 1 in a closed scene), so a shot never sends more energy than the shooter
+holds, and only the distribution among near receivers changes.
 """
 
 from __future__ import annotations
@@ -21,135 +27,88 @@ import numpy as np
 from daskrad import formfactor
 from daskrad.mesh.types import Hierarchy
 
-#: A receiver closer to the shooter's centroid than ``NEAR_FIELD × radius`` counts as near.
-#: Point-sampling a shooter of radius r for a receiver at distance d errs by O((r/d)²); at
-#: d = 4r that is a few per cent, beyond it less than the raster's own error at R = 256.
+#: A receiver closer to the shooter's centroid than ``NEAR_FIELD × radius`` is near: there the
+#: point-sampled factor errs by more than a few per cent, (r/d)² > 1/16.
 NEAR_FIELD = 4.0
-#: Stratified samples per side for a shooter with near receivers (s² samples in all).
-NEAR_SAMPLES = 4
 
 
 @dataclass(frozen=True)
 class ShootContext:
     """Everything a form-factor task reads: geometry arrays and the method's settings.
 
-    Shapes follow :class:`daskrad.mesh.types.Hierarchy`. ``near_samples[p]`` is the number of
-    samples per side for patch ``p`` (1 or ``NEAR_SAMPLES``), fixed once per mesh generation.
+    Shapes follow :class:`daskrad.mesh.types.Hierarchy`; ``patch_radius : (P,)`` is the largest
+    distance from a patch's centroid to its corners.
     """
 
     vertices: np.ndarray
     elem_verts: np.ndarray
+    elem_area: np.ndarray
+    elem_centroid: np.ndarray
+    elem_normal: np.ndarray
+    elem_polygon: np.ndarray
     patch_verts: np.ndarray
+    patch_polygon: np.ndarray
+    patch_area: np.ndarray
+    patch_centroid: np.ndarray
     patch_normal: np.ndarray
-    near_samples: np.ndarray
+    patch_radius: np.ndarray
     method: str
     resolution: int
     options: dict
 
 
-def near_samples(h: Hierarchy) -> np.ndarray:
-    """``(P,) int64``: samples per side for each patch, from the distance to its nearest receiver.
-
-    A receiver is an element of another polygon, in front of the shooter (centroid above the
-    shooter's plane) and facing it. Vectorised over elements, looped over patches in chunks.
-    """
-    out = np.ones(h.n_patches, np.int64)
-    corners = _patch_corners(h)
-    radius = np.linalg.norm(corners - h.patch_centroid[:, None, :], axis=2).max(axis=1)
-    elem_poly = h.elem_polygon
-    for p in range(h.n_patches):
-        d = h.elem_centroid - h.patch_centroid[p]
-        height = d @ h.patch_normal[p]
-        facing = np.einsum("ij,ij->i", -d, h.elem_normal) > 0
-        mask = (height > 1e-9 * radius[p]) & facing & (elem_poly != h.patch_polygon[p])
-        if not mask.any():
-            continue
-        dist = np.sqrt((d[mask] ** 2).sum(axis=1)).min()
-        if dist < NEAR_FIELD * radius[p]:
-            out[p] = NEAR_SAMPLES
-    return out
-
-
-def _patch_corners(h: Hierarchy) -> np.ndarray:
-    """``(P, 4, 3)``: patch corners; a triangle repeats its third corner as the fourth."""
-    pv = h.patch_verts.copy()
-    tri = pv[:, 3] < 0
-    pv[tri, 3] = pv[tri, 2]
-    return h.vertices[pv]
-
-
 def make_context(h: Hierarchy, method: str, resolution: int, **options) -> ShootContext:
-    formfactor.get_method(method)  # refuse an unknown method before any work starts
+    """The task context of a hierarchy; refuses an unknown method before any work starts."""
+    formfactor.get_method(method)
+    pv = np.where(h.patch_verts < 0, h.patch_verts[:, 2:3], h.patch_verts)
+    radius = np.linalg.norm(h.vertices[pv] - h.patch_centroid[:, None, :], axis=2).max(axis=1)
     return ShootContext(
-        vertices=h.vertices, elem_verts=h.elem_verts, patch_verts=h.patch_verts,
-        patch_normal=h.patch_normal, near_samples=near_samples(h), method=method,
-        resolution=resolution, options=dict(options),
+        vertices=h.vertices, elem_verts=h.elem_verts, elem_area=h.elem_area,
+        elem_centroid=h.elem_centroid, elem_normal=h.elem_normal, elem_polygon=h.elem_polygon,
+        patch_verts=h.patch_verts, patch_polygon=h.patch_polygon, patch_area=h.patch_area,
+        patch_centroid=h.patch_centroid, patch_normal=h.patch_normal, patch_radius=radius,
+        method=method, resolution=resolution, options=dict(options),
     )
 
 
-def sample_points(corners: np.ndarray, is_triangle: bool, s: int) -> tuple[np.ndarray, np.ndarray]:
-    """Stratified points on a planar patch and their area weights (summing to 1).
-
-    ``corners : (4, 3)``. A quad is split bilinearly into ``s × s`` sub-quads, a triangle into
-    ``s²`` similar sub-triangles; each sample is a sub-cell's centroid, weighted by its area.
-    Returns ``points (n, 3)``, ``weights (n,)``.
-    """
-    if s == 1:
-        if is_triangle:
-            return corners[:3].mean(axis=0)[None], np.ones(1)
-        cells = corners[None]
-    elif is_triangle:
-        a, b, c = corners[:3]
-        cells = []
-        for i in range(s):
-            for j in range(s - i):
-                p0 = a + (b - a) * i / s + (c - a) * j / s
-                du, dv = (b - a) / s, (c - a) / s
-                cells.append([p0, p0 + du, p0 + dv, p0 + dv])
-                if i + j < s - 1:
-                    cells.append([p0 + du, p0 + du + dv, p0 + dv, p0 + dv])
-        cells = np.array(cells)
-    else:
-        t = np.linspace(0.0, 1.0, s + 1)
-        a, b, c, d = corners
-        grid = ((1 - t)[:, None, None] * ((1 - t)[None, :, None] * a + t[None, :, None] * b)
-                + t[:, None, None] * ((1 - t)[None, :, None] * d + t[None, :, None] * c))
-        cells = np.stack([grid[:-1, :-1], grid[:-1, 1:], grid[1:, 1:], grid[1:, :-1]], axis=2)
-        cells = cells.reshape(-1, 4, 3)
-    points, areas = _cell_centroids(cells)
-    return points, areas / areas.sum()
-
-
-def _cell_centroids(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Area-weighted centroids and areas of planar cells ``(n, 4, 3)`` (fan of two triangles;
-    a triangle has its last corner repeated, giving a zero-area second half)."""
-    a, b, c, d = (cells[:, k] for k in range(4))
-    a1 = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-    a2 = 0.5 * np.linalg.norm(np.cross(c - a, d - a), axis=1)
-    g1 = (a + b + c) / 3.0
-    g2 = (a + c + d) / 3.0
-    area = a1 + a2
-    return (g1 * a1[:, None] + g2 * a2[:, None]) / area[:, None], area
+def shoot_row(ctx: ShootContext, p: int) -> np.ndarray:
+    """``(E,) float64``: the form factors ``F_pj`` from patch ``p`` to every element."""
+    point = ctx.patch_centroid[p][None]
+    normal = ctx.patch_normal[p][None]
+    row = formfactor.shooter_rows(point, normal, ctx.vertices, ctx.elem_verts,
+                                  method=ctx.method, resolution=ctx.resolution,
+                                  **ctx.options)[0]
+    offset = ctx.elem_centroid - ctx.patch_centroid[p]
+    near = ((np.einsum("ij,ij->i", offset, offset) < (NEAR_FIELD * ctx.patch_radius[p]) ** 2)
+            & (ctx.elem_polygon != ctx.patch_polygon[p]))
+    near &= row > 0
+    if not near.any():
+        return row
+    won, covered, _ = formfactor.hemisphere_counts(
+        point, normal, ctx.vertices, ctx.elem_verts, resolution=ctx.resolution,
+        edge_angle=ctx.options.get("edge_angle", 1.0))
+    ids = np.flatnonzero(near)
+    visible = np.where(covered[0, ids] > 0, won[0, ids] / np.maximum(covered[0, ids], 1), 1.0)
+    # F_ji from each near receiver's centroid to the whole shooter polygon (Lambert, exact in
+    # the shooter's extent), then F_ij = F_ji · A_j / A_i by reciprocity
+    F_ji = formfactor.analytic_rows(ctx.elem_centroid[ids], ctx.elem_normal[ids],
+                                    ctx.vertices, ctx.patch_verts[p:p + 1])[:, 0]
+    exact = F_ji * ctx.elem_area[ids] / ctx.patch_area[p] * visible
+    share = row[ids].sum()
+    if exact.sum() > 0:
+        row[ids] = exact * (share / exact.sum())
+    return row
 
 
 def shoot_rows(ctx: ShootContext, patch_ids: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
     """Form-factor rows of the shooters ``patch_ids``, in that order.
 
     Returns a list of ``(ids (k,) int32, factors (k,) float64)``: the elements with a nonzero
-    form factor from the shooter and the factors ``F_ij`` (patch-area average over the
-    shooter's sample points), ``Σ factors ≤ 1``.
+    form factor from the shooter and the factors ``F_ij``, ``Σ factors ≤ 1``.
     """
     rows = []
     for p in np.asarray(patch_ids):
-        pv = ctx.patch_verts[p]
-        tri = pv[3] < 0
-        corners = ctx.vertices[np.where(pv < 0, pv[2], pv)]
-        points, weights = sample_points(corners, bool(tri), int(ctx.near_samples[p]))
-        normals = np.broadcast_to(ctx.patch_normal[p], points.shape)
-        F = formfactor.shooter_rows(points, np.ascontiguousarray(normals), ctx.vertices,
-                                    ctx.elem_verts, method=ctx.method,
-                                    resolution=ctx.resolution, **ctx.options)
-        row = weights @ F
+        row = shoot_row(ctx, int(p))
         ids = np.flatnonzero(row > 0).astype(np.int32)
         rows.append((ids, row[ids]))
     return rows

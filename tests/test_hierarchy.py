@@ -223,7 +223,8 @@ def check_invariants(scene, h, ps, es):
     assert np.array_equal(h.elem_normal, first[h.elem_polygon])
     assert np.array_equal(h.patch_normal, first[h.patch_polygon])
     np.testing.assert_allclose(np.linalg.norm(h.elem_normal, axis=1), 1.0, rtol=1e-15 * 8)
-    tris, tri_elem = hierarchy_triangles(h)
+    tris, tri_verts, tri_elem = hierarchy_triangles(h)
+    np.testing.assert_array_equal(tris, h.vertices[tri_verts])
     cr = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     np.testing.assert_allclose(cr / np.linalg.norm(cr, axis=1, keepdims=True),
                                h.elem_normal[tri_elem], atol=NORMAL_ATOL)
@@ -417,7 +418,7 @@ def test_hierarchy_triangles():
     v = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [0, 1, 1]]
     scene = make_scene(v, [[0, 1, 2, 3], [4, 5, 6, -1]])
     h = build_hierarchy(scene, 0.5, 0.5)
-    tris, owner = hierarchy_triangles(h)
+    tris, _, owner = hierarchy_triangles(h)
     n_quads = int((h.elem_verts[:, 3] >= 0).sum())
     assert tris.shape == (h.n_elements + n_quads, 3, 3) and tris.dtype == np.float64
     assert owner.dtype == np.int32 and np.all(np.diff(owner) >= 0)

@@ -205,7 +205,7 @@ def _areas_centroids(vertices: np.ndarray, verts: np.ndarray,
     return area, centroid
 
 
-def hierarchy_triangles(h: Hierarchy) -> tuple[np.ndarray, np.ndarray]:
+def hierarchy_triangles(h: Hierarchy) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every element as one triangle (a triangle) or two (a quad ``(a,b,c,d)`` →
     ``(a,b,c), (a,c,d)``), for the ray-tracing voxel grid.
 
@@ -213,6 +213,8 @@ def hierarchy_triangles(h: Hierarchy) -> tuple[np.ndarray, np.ndarray]:
     -------
     triangles : (T, 3, 3) float64
         Corners, wound like the element.
+    tri_verts : (T, 3) int32
+        Vertex ids of the corners (for Gouraud interpolation of vertex values).
     tri_element : (T,) int32
         The element of each triangle, non-decreasing.
     """
@@ -224,7 +226,8 @@ def hierarchy_triangles(h: Hierarchy) -> tuple[np.ndarray, np.ndarray]:
     owner = np.concatenate([np.arange(len(ev), dtype=np.int32),
                             np.flatnonzero(is_quad).astype(np.int32)])
     order = np.argsort(owner, kind="stable")
-    return h.vertices[idx[order]], owner[order]
+    tri_verts = np.ascontiguousarray(idx[order], dtype=np.int32)
+    return h.vertices[tri_verts], tri_verts, owner[order]
 
 
 def vertex_polygon(h: Hierarchy) -> np.ndarray:
