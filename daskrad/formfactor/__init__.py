@@ -12,12 +12,26 @@ whose lit side does not face the point gets 0.
 
 Methods (:data:`METHODS`):
 
-``"hemisphere"``
-    Doi's hemisphere-base item buffer with occlusion among the elements
-    (:mod:`daskrad.kernels.hemisphere`). Options: ``edge_angle`` (degrees, default
+``"hemisphere"`` (the default)
+    Anti-aliased hemisphere base: Doi's item buffer decides visibility, Lambert's formula the
+    size, ``F_j = L_j · won_j / covered_j`` (:func:`hemisphere_rows`). Unoccluded elements of
+    any size get their exact form factor; rows sum to at most 1, to exactly 1 in a closed
+    scene. Options: ``edge_angle`` (degrees, default
     :data:`daskrad.tolerances.EDGE_ANGLE_DEG`, eq. 4) and ``depth`` (``"exact"``, default, or
-    ``"plane"`` for the paper's eq. 5). Every disc pixel weighs ``1/n_disc``, so each row sums
-    to at most 1, and to exactly 1 (to round-off) in a closed scene.
+    ``"plane"`` for the paper's eq. 5).
+``"hemisphere-itembuffer"``
+    The paper's item buffer as it is, ``F = won / n_disc`` (eqs. 6–7): every disc pixel
+    weighs ``1/n_disc``; small or distant elements alias (:mod:`daskrad.kernels.hemisphere`).
+``"hemisphere-scanline"``
+    Exact span lengths on ``resolution`` scanlines, visibility per span (eq. 8,
+    :mod:`daskrad.kernels.scanline`); option ``both_axes`` adds vertical scanlines.
+``"hemicube"``
+    Cohen & Greenberg's hemicube with normalised delta form factors
+    (:mod:`daskrad.kernels.hemicube`), on the same rasterizer.
+``"raycast"``
+    Wallace et al.'s receiver-vertex method: Lambert × visibility of the element's sample
+    points by shadow rays through the voxel grid (:mod:`daskrad.kernels.raycast`); option
+    ``samples``; ``resolution`` is ignored.
 ``"analytic"``
     Lambert's contour formula, **no occlusion** (:mod:`daskrad.kernels.lambert`); the
     ground truth for unoccluded configurations. ``resolution`` is ignored.
@@ -35,8 +49,13 @@ import numpy as np
 
 from daskrad import tolerances
 from daskrad.errors import OptionError, SceneError
-from daskrad.kernels.hemisphere import hemisphere_shots
+from daskrad.kernels.geometry import scene_diagonal
+from daskrad.kernels.grid import build_grid
+from daskrad.kernels.hemicube import hemicube_shots
+from daskrad.kernels.hemisphere import hemisphere_shots, hemisphere_visibility
 from daskrad.kernels.lambert import lambert_shots
+from daskrad.kernels.raycast import raycast_visibility
+from daskrad.kernels.scanline import scanline_shots
 
 __all__ = [
     "METHODS",
@@ -44,8 +63,12 @@ __all__ = [
     "analytic_rows",
     "get_method",
     "hemisphere_counts",
+    "hemicube_rows",
     "hemisphere_rows",
+    "itembuffer_rows",
     "point_to_elements",
+    "raycast_rows",
+    "scanline_rows",
     "shooter_rows",
     "to_sparse",
 ]
@@ -89,6 +112,20 @@ def _check_resolution(resolution) -> int:
     return int(resolution)
 
 
+def _raster_args(resolution, edge_angle=tolerances.EDGE_ANGLE_DEG, depth="exact"):
+    """Validated ``(R, edge angle in radians, plane_depth)`` of the hemisphere methods."""
+    resolution = _check_resolution(resolution)
+    if depth not in _DEPTHS:
+        raise OptionError(f"depth must be one of {', '.join(_DEPTHS)}, got {depth!r}")
+    try:
+        angle = float(edge_angle)
+    except (TypeError, ValueError):
+        angle = math.nan
+    if not (0.0 < angle <= 90.0):
+        raise OptionError(f"edge_angle must be in (0, 90] degrees, got {edge_angle!r}")
+    return resolution, math.radians(angle), depth == "plane"
+
+
 def hemisphere_counts(points, normals, vertices, elem_verts, resolution=256,
                       edge_angle=tolerances.EDGE_ANGLE_DEG, depth="exact"):
     """Raw pixel counts of the hemisphere-base item buffer.
@@ -98,37 +135,147 @@ def hemisphere_counts(points, normals, vertices, elem_verts, resolution=256,
     won : (S, E) int32
         Disc pixels each element owns after hidden-surface removal.
     covered : (S, E) int32
-        Disc pixels each element's projection covers before the depth test; an
-        anti-aliased variant uses ``analytic × won / covered``.
+        Disc pixels each element's projection covers before the depth test; the
+        anti-aliased default uses ``analytic × won / covered``.
     n_disc : int
         Pixel centres inside the unit circle: ``F = won / n_disc``.
     """
-    resolution = _check_resolution(resolution)
-    if depth not in _DEPTHS:
-        raise OptionError(f"depth must be one of {', '.join(_DEPTHS)}, got {depth!r}")
-    if not (0.0 < float(edge_angle) <= 90.0):
-        raise OptionError(f"edge_angle must be in (0, 90] degrees, got {edge_angle!r}")
+    r, angle, plane = _raster_args(resolution, edge_angle, depth)
     points, normals, vertices, elem_verts = _prepare(points, normals, vertices, elem_verts)
-    won, covered, n_disc = hemisphere_shots(
-        points, normals, vertices, elem_verts, resolution, math.radians(float(edge_angle)),
-        depth == "plane", tolerances.HORIZON_EPS,
-    )
+    won, covered, n_disc = hemisphere_shots(points, normals, vertices, elem_verts, r, angle,
+                                            plane, tolerances.HORIZON_EPS)
     return won, covered, int(n_disc)
 
 
-def hemisphere_rows(points, normals, vertices, elem_verts, resolution=256, **options):
-    """``(S, E) float64``: hemisphere-base form factors with occlusion (DESIGN §2).
+def _conserve(rows, closed=None):
+    """Scale rows in place so a shot never sends more than the shooter holds (DESIGN §2).
 
-    ``F[s, j] = won[s, j] / n_disc``: every pixel centre inside the unit circle weighs the same
-    ``1/n_disc`` (this replaces the paper's ``4/(π R²)`` of eqs. 6–7 so the weights sum to
-    exactly 1), and each pixel has one winner, so ``Σ_j F[s, j] <= 1``, with equality (to
-    round-off) when every direction above the horizon sees some element, i.e. in a closed
-    scene. Options: ``edge_angle`` (degrees), ``depth`` (``"exact"`` or ``"plane"``).
+    A row summing to more than 1 is scaled to 1. A row marked ``closed`` (every disc pixel won:
+    every direction above the horizon sees some element, so the exact row sums to 1) is scaled
+    to exactly 1, which keeps the closed-scene invariant of the item buffer.
+    """
+    total = rows.sum(axis=1)
+    scale = np.where(total > 1.0, 1.0 / np.maximum(total, 1e-300), 1.0)
+    if closed is not None:
+        scale = np.where(closed & (total > 0.0), 1.0 / np.maximum(total, 1e-300), scale)
+    rows *= scale[:, None]
+    return rows
+
+
+def hemisphere_rows(points, normals, vertices, elem_verts, resolution=256, **options):
+    """``(S, E) float64``: the default, anti-aliased hemisphere-base form factors.
+
+    The item buffer decides **visibility**, Lambert's contour formula the **size** (issue 6,
+    item 2): ``F_j = L_j · won_j / covered_j``, the exact unoccluded form factor times the
+    fraction of the element's disc pixels it wins after hidden-surface removal. An element
+    that covers no pixel centre gets ``L_j`` when it lies in front at the pixel nearest to its
+    centroid's direction and 0 otherwise (:func:`daskrad.kernels.hemisphere.hemisphere_visibility`).
+
+    Error: an unoccluded element gets ``L_j`` exactly, whatever its size, distance or angle (no
+    aliasing). A partly occluded one errs only through the pixels along the *occluder's*
+    outline inside it: ``|ΔF_j| <= L_j · (P_px/4 + 4) / covered_j`` with the item buffer's
+    error model (tests/test_formfactor.py). Conservation: a row is scaled to 1 when it sums to
+    more (overlapping elements) and to exactly 1 when every disc pixel is won (a closed view),
+    so ``Σ_j F_j <= 1`` always and ``= 1`` in a closed scene (:func:`_conserve`).
+    Options: ``edge_angle`` (degrees, eq. 4), ``depth`` (``"exact"`` or ``"plane"``, eq. 5).
+    """
+    _check_options(options, ("edge_angle", "depth"))
+    r, angle, plane = _raster_args(resolution, **options)
+    points, normals, vertices, elem_verts = _prepare(points, normals, vertices, elem_verts)
+    won, covered, n_disc, visible = hemisphere_visibility(
+        points, normals, vertices, elem_verts, r, angle, plane, tolerances.HORIZON_EPS)
+    lam = lambert_shots(points, normals, vertices, elem_verts)
+    frac = np.where(covered > 0, won / np.maximum(covered, 1), visible)
+    return _conserve(lam * frac, won.sum(axis=1) == n_disc)
+
+
+def itembuffer_rows(points, normals, vertices, elem_verts, resolution=256, **options):
+    """``(S, E) float64``: the paper's item buffer, ``F = won / n_disc`` (eqs. 6–7).
+
+    Every pixel centre inside the unit circle weighs the same ``1/n_disc`` (this replaces the
+    paper's ``4/(π R²)`` so the weights sum to exactly 1), and each pixel has one winner, so
+    ``Σ_j F[s, j] <= 1``, with equality (to round-off) when every direction above the horizon
+    sees some element, i.e. in a closed scene. A small element aliases: its count errs by about
+    a quarter of its outline's length in pixels. Options: ``edge_angle`` (degrees), ``depth``
+    (``"exact"`` or ``"plane"``).
     """
     _check_options(options, ("edge_angle", "depth"))
     won, _, n_disc = hemisphere_counts(points, normals, vertices, elem_verts, resolution,
                                        **options)
     return won / float(n_disc)
+
+
+def scanline_rows(points, normals, vertices, elem_verts, resolution=256, **options):
+    """``(S, E) float64``: hemisphere base by exact span lengths on ``resolution`` scanlines.
+
+    Eq. 8 with visibility per span piece (:mod:`daskrad.kernels.scanline`); the span-length
+    unit is normalised so the whole disc sums to exactly 1 (``Σ_j F_j <= 1``, ``= 1`` in a closed
+    scene). Options: ``edge_angle``, ``depth``, ``both_axes`` (average horizontal and vertical
+    scanlines).
+    """
+    _check_options(options, ("edge_angle", "depth", "both_axes"))
+    both_axes = options.pop("both_axes", False)
+    r, angle, plane = _raster_args(resolution, **options)
+    points, normals, vertices, elem_verts = _prepare(points, normals, vertices, elem_verts)
+    return scanline_shots(points, normals, vertices, elem_verts, r, angle, plane,
+                          tolerances.HORIZON_EPS, bool(both_axes))
+
+
+def hemicube_rows(points, normals, vertices, elem_verts, resolution=256, **options):
+    """``(S, E) float64``: Cohen & Greenberg's hemicube (:mod:`daskrad.kernels.hemicube`).
+
+    ``resolution`` is the top face's side ``R`` (sides ``R × R//2``); delta form factors are
+    normalised to sum to exactly 1 over the cube. ``edge_angle`` and ``depth`` are accepted and
+    ignored (central projection keeps edges straight and depth linear).
+    """
+    _check_options(options, ("edge_angle", "depth"))
+    r = _check_resolution(resolution)
+    points, normals, vertices, elem_verts = _prepare(points, normals, vertices, elem_verts)
+    return hemicube_shots(points, normals, vertices, elem_verts, r, tolerances.HORIZON_EPS)
+
+
+_GRID_CACHE: tuple | None = None
+
+
+def _element_grid(vertices, elem_verts):
+    """Voxel grid over the elements' triangles (quads split along 0–2), cached for the last
+    geometry seen (compared by content, so an edited array never reuses a stale grid)."""
+    global _GRID_CACHE
+    cached = _GRID_CACHE
+    if (cached is not None and np.array_equal(cached[0], vertices)
+            and np.array_equal(cached[1], elem_verts)):
+        return cached[2]
+    quad = elem_verts[:, 3] >= 0
+    first = vertices[elem_verts[:, :3]]
+    second = vertices[elem_verts[quad][:, [0, 2, 3]]]
+    grid = build_grid(np.concatenate([first, second]), rel_eps=tolerances.RAY_EPS)
+    _GRID_CACHE = (vertices.copy(), elem_verts.copy(), grid)
+    return grid
+
+
+def raycast_rows(points, normals, vertices, elem_verts, resolution=None, samples=2,
+                 **options):
+    """``(S, E) float64``: Wallace et al.'s ray-cast form factor (receiver vertices).
+
+    ``F_j = L_j × (visible fraction of the element's sample points)``: Lambert's exact
+    unoccluded term times visibility by shadow rays from the shooting point through the voxel
+    grid (:mod:`daskrad.kernels.raycast`). ``samples``: ``1`` the centroid, ``n >= 2`` an
+    ``n × n`` lattice including the corners (``2``: the receiver vertices, the default).
+    ``resolution``, ``edge_angle`` and ``depth`` are accepted and ignored. A row summing to more
+    than 1 (an over-estimated partly hidden element) is scaled to 1.
+    """
+    _check_options(options, ("edge_angle", "depth"))
+    if isinstance(samples, bool) or int(samples) != samples or not 1 <= samples <= 64:
+        raise OptionError(f"samples must be an integer in [1, 64], got {samples!r}")
+    points, normals, vertices, elem_verts = _prepare(points, normals, vertices, elem_verts)
+    lam = lambert_shots(points, normals, vertices, elem_verts)
+    if not len(elem_verts):
+        return lam
+    grid = _element_grid(vertices, elem_verts)
+    offset = tolerances.RAY_OFFSET * max(scene_diagonal(vertices), 1e-300)
+    vis = raycast_visibility(points, normals, vertices, elem_verts, lam > 0.0, grid,
+                             int(samples), offset)
+    return _conserve(lam * vis)
 
 
 def analytic_rows(points, normals, vertices, elem_verts, resolution=None, **options):
@@ -154,6 +301,10 @@ def _check_options(options, known):
 #: ``fn(points, normals, vertices, elem_verts, resolution, **options) -> (S, E) float64``.
 METHODS = {
     "hemisphere": hemisphere_rows,
+    "hemisphere-itembuffer": itembuffer_rows,
+    "hemisphere-scanline": scanline_rows,
+    "hemicube": hemicube_rows,
+    "raycast": raycast_rows,
     "analytic": analytic_rows,
 }
 

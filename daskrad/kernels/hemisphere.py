@@ -178,21 +178,212 @@ def _emit_edge(ax, ay, az, bx, by, bz, horizon, cos_thr, thr, xs, ys, m):
 
 
 @jit
-def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
-           resolution, centre, dz, cos_thr, thr, plane_depth,
-           lx, ly, lz, item, zbuf, xs, ys, xcross, won, covered):
-    """One shot: fill ``won (E,)`` and ``covered (E,)`` (both int32, zeroed by the caller)."""
-    r = resolution
-    half_r = 0.5 * r
+def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz, cos_thr, thr,
+                    cx, cy, cz, qx, qy, qz, qclip, xs, ys):
+    """Steps 2–5 for element ``e``: cull, clip at ``z = hz``, split edges, project.
+
+    ``lx, ly, lz : (V,) float64`` are the vertices in the shooter's local frame; ``cx, cy, cz
+    (4,)`` are scratch. On return ``qx, qy, qz, qclip (5,)`` hold the ``m`` clipped corners
+    (local frame; ``qclip`` marks points made by the horizon clip) and ``xs, ys`` the ``mm``
+    points of the projected polyline (eqs. 1–4).
+
+    Returns ``(m, mm, c)`` with ``c = n_e · (q - p) < 0`` for a front-facing element; ``mm = 0``
+    when the element is culled (back-facing, at or below the horizon, degenerate after clip).
+    """
+    # c = n_e · (q - p) < 0  <=>  p on the lit side (one-sided receiver).
+    c = eoff[e] - (enrm[e, 0] * sx + enrm[e, 1] * sy + enrm[e, 2] * sz)
+    if not c < 0.0:
+        return 0, 0, c
+    k = 4 if elem_verts[e, 3] >= 0 else 3
+    zmax = -np.inf
+    zmin = np.inf
+    for a in range(k):
+        vi = elem_verts[e, a]
+        cx[a] = lx[vi]
+        cy[a] = ly[vi]
+        cz[a] = lz[vi]
+        zmax = max(zmax, cz[a])
+        zmin = min(zmin, cz[a])
+    if zmax <= hz:
+        return 0, 0, c
+    # --- clip against z = hz (keep z > hz) ------------------------------------------------
+    m = 0
+    if zmin > hz:
+        for a in range(k):
+            qx[a] = cx[a]
+            qy[a] = cy[a]
+            qz[a] = cz[a]
+            qclip[a] = False
+        m = k
+    else:
+        for a in range(k):
+            b = (a + 1) % k
+            ina = cz[a] > hz
+            if ina:
+                qx[m] = cx[a]
+                qy[m] = cy[a]
+                qz[m] = cz[a]
+                qclip[m] = False
+                m += 1
+            if ina != (cz[b] > hz):
+                if lex_less(cx[a], cy[a], cz[a], cx[b], cy[b], cz[b]):
+                    i0 = a
+                    i1 = b
+                else:
+                    i0 = b
+                    i1 = a
+                t = (hz - cz[i0]) / (cz[i1] - cz[i0])
+                qx[m] = cx[i0] + t * (cx[i1] - cx[i0])
+                qy[m] = cy[i0] + t * (cy[i1] - cy[i0])
+                qz[m] = hz
+                qclip[m] = True
+                m += 1
+    if m < 3:
+        return m, 0, c
+    # --- projected polyline (eqs. 1–4) ----------------------------------------------------
+    mm = 0
+    for a in range(m):
+        b = (a + 1) % m
+        mm = _emit_edge(qx[a], qy[a], qz[a], qx[b], qy[b], qz[b],
+                        qclip[a] and qclip[b], cos_thr, thr, xs, ys, mm)
+    return m, mm, c
+
+
+@jit
+def depth_coefficients(plane_depth, qx, qy, qz, m, nlx, nly, nlz, c):
+    """Nearness (larger is nearer) at disc point ``(x, y)`` as ``da x + db y + dc + de √(1-x²-y²)``.
+
+    Exact (default): ``1/t = (n_l · d) / c`` with ``n_l = (nlx, nly, nlz)`` the element's normal
+    in the local frame and ``c = n_e · (q - p)``. ``plane_depth``: minus the paper's eq. 5, ``|v|``
+    interpolated linearly over the disc through three well-spread projected corners of the
+    clipped polygon ``q (m,)``. Returns ``(da, db, dc, de)``.
+    """
+    if not plane_depth:
+        return nlx / c, nly / c, 0.0, nlz / c
+    dep0 = np.sqrt(qx[0] ** 2 + qy[0] ** 2 + qz[0] ** 2)
+    x0 = qx[0] / dep0
+    y0 = qy[0] / dep0
+    best = -1.0
+    i1 = 1
+    for a in range(1, m):
+        ra_ = np.sqrt(qx[a] ** 2 + qy[a] ** 2 + qz[a] ** 2)
+        d2 = (qx[a] / ra_ - x0) ** 2 + (qy[a] / ra_ - y0) ** 2
+        if d2 > best:
+            best = d2
+            i1 = a
+    dep1 = np.sqrt(qx[i1] ** 2 + qy[i1] ** 2 + qz[i1] ** 2)
+    x1 = qx[i1] / dep1 - x0
+    y1 = qy[i1] / dep1 - y0
+    best = -1.0
+    i2 = 2
+    for a in range(1, m):
+        ra_ = np.sqrt(qx[a] ** 2 + qy[a] ** 2 + qz[a] ** 2)
+        ar = abs(x1 * (qy[a] / ra_ - y0) - y1 * (qx[a] / ra_ - x0))
+        if ar > best:
+            best = ar
+            i2 = a
+    dep2 = np.sqrt(qx[i2] ** 2 + qy[i2] ** 2 + qz[i2] ** 2)
+    x2 = qx[i2] / dep2 - x0
+    y2 = qy[i2] / dep2 - y0
+    det = x1 * y2 - x2 * y1
+    if det != 0.0:
+        da = ((dep1 - dep0) * y2 - (dep2 - dep0) * y1) / det
+        db = (x1 * (dep2 - dep0) - x2 * (dep1 - dep0)) / det
+    else:
+        da = 0.0
+        db = 0.0
+    dc = dep0 - da * x0 - db * y0
+    # nearness = -depth
+    return -da, -db, -dc, 0.0
+
+
+@jit
+def fill_polygon(xs, ys, mm, e, xc, yc, ncol, nrow, x0, inv_px, y0, inv_py, mask,
+                 da, db, dc, de, xcross, item, zbuf):
+    """Even-odd scan conversion of the closed polyline ``xs, ys (mm,)`` into a z-buffer.
+
+    The shared rasterizer of the hemisphere base and the hemicube faces. The buffer has
+    ``nrow × ncol`` pixels, row-major; pixel ``(j, i)`` has its centre at ``(xc[i], yc[j])``,
+    ``xc[i] = x0 + (i + 1/2) / inv_px`` (likewise ``y``). A pixel whose ``mask`` is negative is
+    skipped (outside the unit disc); the nearness there is ``da x + db y + dc + de mask``
+    (``mask = √(1-x²-y²)`` on the disc, so :func:`depth_coefficients` applies as is). Nearer
+    (strictly larger) wins, so ties go to the element drawn first. Half-open rules make shared
+    edges watertight (module docstring). Returns the number of unmasked pixels covered.
+    """
+    ymin = np.inf
+    ymax = -np.inf
+    for a in range(mm):
+        ymin = min(ymin, ys[a])
+        ymax = max(ymax, ys[a])
+    j0 = max(int(np.ceil((ymin - y0) * inv_py - 0.5)) - 1, 0)
+    j1 = min(int(np.floor((ymax - y0) * inv_py - 0.5)) + 1, nrow - 1)
+    cov = 0
+    for j in range(j0, j1 + 1):
+        ycj = yc[j]
+        nc = 0
+        for a in range(mm):
+            b = a + 1 if a + 1 < mm else 0
+            ya = ys[a]
+            yb = ys[b]
+            if ya < yb:
+                if ya <= ycj < yb:
+                    xcross[nc] = xs[a] + (ycj - ya) * (xs[b] - xs[a]) / (yb - ya)
+                    nc += 1
+            elif yb < ya:
+                if yb <= ycj < ya:
+                    xcross[nc] = xs[b] + (ycj - yb) * (xs[a] - xs[b]) / (ya - yb)
+                    nc += 1
+        if nc < 2:
+            continue
+        for a in range(1, nc):  # insertion sort: nc is almost always 2
+            x = xcross[a]
+            b = a - 1
+            while b >= 0 and xcross[b] > x:
+                xcross[b + 1] = xcross[b]
+                b -= 1
+            xcross[b + 1] = x
+        row = j * ncol
+        rowterm = db * ycj + dc
+        for a in range(0, nc - 1, 2):
+            i_lo = max(int(np.ceil((xcross[a] - x0) * inv_px - 0.5)), 0)
+            i_hi = min(int(np.ceil((xcross[a + 1] - x0) * inv_px - 0.5)) - 1, ncol - 1)
+            for i in range(i_lo, i_hi + 1):
+                idx = row + i
+                mv = mask[idx]
+                if mv < 0.0:
+                    continue
+                cov += 1
+                near = da * xc[i] + rowterm + de * mv
+                if near > zbuf[idx]:
+                    zbuf[idx] = near
+                    item[idx] = e
+    return cov
+
+
+@jit
+def local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz):
+    """Vertices in the shooter's frame ``(t1, t2, n)`` into ``lx, ly, lz (V,)``; returns the
+    tangents ``(t1x, t1y, t1z, t2x, t2y, t2z)``."""
     t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(snx, sny, snz)
-    n_vert = vertices.shape[0]
-    for v in range(n_vert):
+    for v in range(vertices.shape[0]):
         wx = vertices[v, 0] - sx
         wy = vertices[v, 1] - sy
         wz = vertices[v, 2] - sz
         lx[v] = t1x * wx + t1y * wy + t1z * wz
         ly[v] = t2x * wx + t2y * wy + t2z * wz
         lz[v] = snx * wx + sny * wy + snz * wz
+    return t1x, t1y, t1z, t2x, t2y, t2z
+
+
+@jit
+def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
+           resolution, centre, dz, cos_thr, thr, plane_depth,
+           lx, ly, lz, item, zbuf, xs, ys, xcross, won, covered, visible, gx, gy, gz):
+    """One shot: fill ``won (E,)``, ``covered (E,)`` (int32) and ``visible (E,)`` (bool), all
+    zeroed by the caller; ``gx, gy, gz (E,)`` are scratch."""
+    r = resolution
+    half_r = 0.5 * r
+    t1x, t1y, t1z, t2x, t2y, t2z = local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz)
     for k in range(r * r):
         item[k] = -1
         zbuf[k] = -np.inf
@@ -204,167 +395,138 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
     cy = np.empty(4)
     cz = np.empty(4)
     n_elem = elem_verts.shape[0]
+    n_small = 0
     for e in range(n_elem):
-        # c = n_e · (q - p) < 0  <=>  p on the lit side (one-sided receiver).
-        c = eoff[e] - (enrm[e, 0] * sx + enrm[e, 1] * sy + enrm[e, 2] * sz)
-        if not c < 0.0:
-            continue
-        k = 4 if elem_verts[e, 3] >= 0 else 3
-        zmax = -np.inf
-        zmin = np.inf
-        for a in range(k):
-            vi = elem_verts[e, a]
-            cx[a] = lx[vi]
-            cy[a] = ly[vi]
-            cz[a] = lz[vi]
-            zmax = max(zmax, cz[a])
-            zmin = min(zmin, cz[a])
-        if zmax <= hz:
-            continue
-        # --- clip against z = hz (keep z > hz) --------------------------------------------
-        m = 0
-        if zmin > hz:
-            for a in range(k):
-                qx[a] = cx[a]
-                qy[a] = cy[a]
-                qz[a] = cz[a]
-                qclip[a] = False
-            m = k
-        else:
-            for a in range(k):
-                b = (a + 1) % k
-                ina = cz[a] > hz
-                if ina:
-                    qx[m] = cx[a]
-                    qy[m] = cy[a]
-                    qz[m] = cz[a]
-                    qclip[m] = False
-                    m += 1
-                if ina != (cz[b] > hz):
-                    if lex_less(cx[a], cy[a], cz[a], cx[b], cy[b], cz[b]):
-                        i0 = a
-                        i1 = b
-                    else:
-                        i0 = b
-                        i1 = a
-                    t = (hz - cz[i0]) / (cz[i1] - cz[i0])
-                    qx[m] = cx[i0] + t * (cx[i1] - cx[i0])
-                    qy[m] = cy[i0] + t * (cy[i1] - cy[i0])
-                    qz[m] = hz
-                    qclip[m] = True
-                    m += 1
+        m, mm, c = project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz,
+                                   cos_thr, thr, cx, cy, cz, qx, qy, qz, qclip, xs, ys)
         if m < 3:
             continue
-        # --- projected polyline (eqs. 1–4) ----------------------------------------------------
-        mm = 0
-        for a in range(m):
-            b = (a + 1) % m
-            mm = _emit_edge(qx[a], qy[a], qz[a], qx[b], qy[b], qz[b],
-                            qclip[a] and qclip[b], cos_thr, thr, xs, ys, mm)
-        ymin = np.inf
-        ymax = -np.inf
-        for a in range(mm):
-            ymin = min(ymin, ys[a])
-            ymax = max(ymax, ys[a])
-        j0 = max(int(np.ceil((ymin + 1.0) * half_r - 0.5)) - 1, 0)
-        j1 = min(int(np.floor((ymax + 1.0) * half_r - 0.5)) + 1, r - 1)
-        if j0 > j1:
-            continue
-        # --- depth coefficients -----------------------------------------------------------
-        if plane_depth:
-            # Eq. 5: |v| as a linear function of the projected (x, y), through three vertices.
-            dep0 = np.sqrt(qx[0] ** 2 + qy[0] ** 2 + qz[0] ** 2)
-            x0 = qx[0] / dep0
-            y0 = qy[0] / dep0
-            best = -1.0
-            i1 = 1
-            for a in range(1, m):
-                ra_ = np.sqrt(qx[a] ** 2 + qy[a] ** 2 + qz[a] ** 2)
-                d2 = (qx[a] / ra_ - x0) ** 2 + (qy[a] / ra_ - y0) ** 2
-                if d2 > best:
-                    best = d2
-                    i1 = a
-            dep1 = np.sqrt(qx[i1] ** 2 + qy[i1] ** 2 + qz[i1] ** 2)
-            x1 = qx[i1] / dep1 - x0
-            y1 = qy[i1] / dep1 - y0
-            best = -1.0
-            i2 = 2
-            for a in range(1, m):
-                ra_ = np.sqrt(qx[a] ** 2 + qy[a] ** 2 + qz[a] ** 2)
-                ar = abs(x1 * (qy[a] / ra_ - y0) - y1 * (qx[a] / ra_ - x0))
-                if ar > best:
-                    best = ar
-                    i2 = a
-            dep2 = np.sqrt(qx[i2] ** 2 + qy[i2] ** 2 + qz[i2] ** 2)
-            x2 = qx[i2] / dep2 - x0
-            y2 = qy[i2] / dep2 - y0
-            det = x1 * y2 - x2 * y1
-            if det != 0.0:
-                da = ((dep1 - dep0) * y2 - (dep2 - dep0) * y1) / det
-                db = (x1 * (dep2 - dep0) - x2 * (dep1 - dep0)) / det
-            else:
-                da = 0.0
-                db = 0.0
-            dc = dep0 - da * x0 - db * y0
-            # nearness = -depth
-            da = -da
-            db = -db
-            dc = -dc
-            de = 0.0
-        else:
-            # Exact: 1/t = (n_l · d) / c with n_l the element normal in the local frame.
+        cov = 0
+        if mm > 0:
             nlx = t1x * enrm[e, 0] + t1y * enrm[e, 1] + t1z * enrm[e, 2]
             nly = t2x * enrm[e, 0] + t2y * enrm[e, 1] + t2z * enrm[e, 2]
             nlz = snx * enrm[e, 0] + sny * enrm[e, 1] + snz * enrm[e, 2]
-            da = nlx / c
-            db = nly / c
-            de = nlz / c
-            dc = 0.0
-        # --- even-odd scanline fill --------------------------------------------------------
-        cov = 0
-        for j in range(j0, j1 + 1):
-            yc = centre[j]
-            nc = 0
-            for a in range(mm):
-                b = a + 1 if a + 1 < mm else 0
-                ya = ys[a]
-                yb = ys[b]
-                if ya < yb:
-                    if ya <= yc < yb:
-                        xcross[nc] = xs[a] + (yc - ya) * (xs[b] - xs[a]) / (yb - ya)
-                        nc += 1
-                elif yb < ya:
-                    if yb <= yc < ya:
-                        xcross[nc] = xs[b] + (yc - yb) * (xs[a] - xs[b]) / (ya - yb)
-                        nc += 1
-            if nc < 2:
-                continue
-            for a in range(1, nc):  # insertion sort: nc is almost always 2
-                x = xcross[a]
-                b = a - 1
-                while b >= 0 and xcross[b] > x:
-                    xcross[b + 1] = xcross[b]
-                    b -= 1
-                xcross[b + 1] = x
-            row = j * r
-            rowterm = db * yc + dc
-            for a in range(0, nc - 1, 2):
-                i_lo = max(int(np.ceil((xcross[a] + 1.0) * half_r - 0.5)), 0)
-                i_hi = min(int(np.ceil((xcross[a + 1] + 1.0) * half_r - 0.5)) - 1, r - 1)
-                for i in range(i_lo, i_hi + 1):
-                    idx = row + i
-                    dzv = dz[idx]
-                    if dzv < 0.0:
-                        continue
-                    cov += 1
-                    near = da * centre[i] + rowterm + de * dzv
-                    if near > zbuf[idx]:
-                        zbuf[idx] = near
-                        item[idx] = e
+            da, db, dc, de = depth_coefficients(plane_depth, qx, qy, qz, m, nlx, nly, nlz, c)
+            cov = fill_polygon(xs, ys, mm, e, centre, centre, r, r, -1.0, half_r, -1.0, half_r,
+                               dz, da, db, dc, de, xcross, item, zbuf)
         covered[e] = cov
+        if cov == 0:
+            # Too small to hold a pixel centre: remember the direction of its (clipped)
+            # centroid for the visibility test below, once the buffer is complete.
+            mx = 0.0
+            my = 0.0
+            mz = 0.0
+            for a in range(m):
+                mx += qx[a]
+                my += qy[a]
+                mz += qz[a]
+            gx[n_small] = mx
+            gy[n_small] = my
+            gz[n_small] = mz
+            covered[e] = -1 - n_small  # temporary marker: slot of the direction
+            n_small += 1
     for k in range(r * r):
         if item[k] >= 0:
             won[item[k]] += 1
+    if n_small == 0:
+        return
+    # Elements that cover no pixel centre: visible when no other element's plane lies nearer
+    # along the direction of their centroid, at the pixel nearest to it. Both nearnesses are
+    # exact (1/t along the same direction), also with plane_depth, so a small element lying in
+    # the plane of the pixel's winner (a neighbour on the same wall) ties and counts visible.
+    for e in range(n_elem):
+        if covered[e] >= 0:
+            continue
+        slot = -1 - covered[e]
+        covered[e] = 0
+        mx = gx[slot]
+        my = gy[slot]
+        mz = gz[slot]
+        norm = np.sqrt(mx * mx + my * my + mz * mz)
+        if not norm > 0.0:
+            continue
+        mx /= norm
+        my /= norm
+        mz /= norm
+        i = min(max(int(np.floor((mx + 1.0) * half_r)), 0), r - 1)
+        j = min(max(int(np.floor((my + 1.0) * half_r)), 0), r - 1)
+        w = item[j * r + i]
+        if dz[j * r + i] < 0.0 or w < 0:
+            visible[e] = True  # no information there (the rim, or an empty pixel)
+            continue
+        own = _nearness(e, mx, my, mz, sx, sy, sz, enrm, eoff, t1x, t1y, t1z, t2x, t2y, t2z,
+                        snx, sny, snz)
+        other = _nearness(w, mx, my, mz, sx, sy, sz, enrm, eoff, t1x, t1y, t1z, t2x, t2y,
+                          t2z, snx, sny, snz)
+        visible[e] = not (other > own * (1.0 + 1e-9))
+
+
+@jit
+def _nearness(e, dx, dy, dz_, sx, sy, sz, enrm, eoff, t1x, t1y, t1z, t2x, t2y, t2z,
+              snx, sny, snz):
+    """``1/t`` along the local unit direction ``d`` to the plane of element ``e`` (<= 0 when
+    the plane lies behind)."""
+    c = eoff[e] - (enrm[e, 0] * sx + enrm[e, 1] * sy + enrm[e, 2] * sz)
+    if c == 0.0:
+        return 0.0
+    nlx = t1x * enrm[e, 0] + t1y * enrm[e, 1] + t1z * enrm[e, 2]
+    nly = t2x * enrm[e, 0] + t2y * enrm[e, 1] + t2z * enrm[e, 2]
+    nlz = snx * enrm[e, 0] + sny * enrm[e, 1] + snz * enrm[e, 2]
+    return (nlx * dx + nly * dy + nlz * dz_) / c
+
+
+@jit
+def edge_capacity(edge_angle):
+    """Length of the polyline buffers: a straight edge subtends < 180°, so it gives at most
+    ``ceil(π/thr)`` pieces, plus the two spikes of a horizon edge; a clipped quad has at most
+    5 edges."""
+    per_edge = int(np.ceil(np.pi / edge_angle)) + 3
+    return 5 * per_edge + 8
+
+
+@jit
+def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edge_angle,
+                          plane_depth, horizon_eps):
+    """:func:`hemisphere_shots` plus ``visible : (S, E) bool``.
+
+    ``visible[s, e]`` is set only for elements that cover no pixel centre (``covered == 0``)
+    but reach above the horizon: whether the element is in front at the pixel nearest to the
+    direction of its centroid (see :func:`_shoot`). It lets the anti-aliased method give such
+    elements their analytic form factor instead of 0.
+
+    Returns ``(won, covered, n_disc, visible)``.
+    """
+    n_shot = points.shape[0]
+    n_elem = elem_verts.shape[0]
+    n_vert = vertices.shape[0]
+    r = resolution
+    enrm, eoff = element_planes(vertices, elem_verts)
+    hz = max(horizon_eps * scene_diagonal(vertices), 1e-300)
+    centre, dz, n_disc = disc_pixels(r)
+    # Buffers allocated once per call, reused by every shot and element.
+    item = np.empty(r * r, dtype=np.int32)
+    zbuf = np.empty(r * r)
+    lx = np.empty(n_vert)
+    ly = np.empty(n_vert)
+    lz = np.empty(n_vert)
+    cap = edge_capacity(edge_angle)
+    xs = np.empty(cap)
+    ys = np.empty(cap)
+    xcross = np.empty(cap)
+    gx = np.empty(n_elem)
+    gy = np.empty(n_elem)
+    gz = np.empty(n_elem)
+    won = np.zeros((n_shot, n_elem), dtype=np.int32)
+    covered = np.zeros((n_shot, n_elem), dtype=np.int32)
+    visible = np.zeros((n_shot, n_elem), dtype=np.bool_)
+    cos_thr = np.cos(edge_angle)
+    for s in range(n_shot):
+        _shoot(points[s, 0], points[s, 1], points[s, 2],
+               normals[s, 0], normals[s, 1], normals[s, 2],
+               vertices, elem_verts, enrm, eoff, hz, r, centre, dz, cos_thr, edge_angle,
+               plane_depth, lx, ly, lz, item, zbuf, xs, ys, xcross, won[s], covered[s],
+               visible[s], gx, gy, gz)
+    return won, covered, n_disc, visible
 
 
 @jit
@@ -402,32 +564,7 @@ def hemisphere_shots(points, normals, vertices, elem_verts, resolution, edge_ang
         Pixel centres inside the unit circle; every disc pixel weighs ``1/n_disc``, so the
         weights sum to exactly 1 (``Σ_j F_j <= 1``, ``= 1`` in a closed scene).
     """
-    n_shot = points.shape[0]
-    n_elem = elem_verts.shape[0]
-    n_vert = vertices.shape[0]
-    r = resolution
-    enrm, eoff = element_planes(vertices, elem_verts)
-    hz = max(horizon_eps * scene_diagonal(vertices), 1e-300)
-    centre, dz, n_disc = disc_pixels(r)
-    # Buffers allocated once per call, reused by every shot and element.
-    item = np.empty(r * r, dtype=np.int32)
-    zbuf = np.empty(r * r)
-    lx = np.empty(n_vert)
-    ly = np.empty(n_vert)
-    lz = np.empty(n_vert)
-    # A straight edge subtends < 180°: at most ceil(π/thr) pieces, plus the two spikes of a
-    # horizon edge; a clipped quad has at most 5 edges.
-    per_edge = int(np.ceil(np.pi / edge_angle)) + 3
-    cap = 5 * per_edge + 8
-    xs = np.empty(cap)
-    ys = np.empty(cap)
-    xcross = np.empty(cap)
-    won = np.zeros((n_shot, n_elem), dtype=np.int32)
-    covered = np.zeros((n_shot, n_elem), dtype=np.int32)
-    cos_thr = np.cos(edge_angle)
-    for s in range(n_shot):
-        _shoot(points[s, 0], points[s, 1], points[s, 2],
-               normals[s, 0], normals[s, 1], normals[s, 2],
-               vertices, elem_verts, enrm, eoff, hz, r, centre, dz, cos_thr, edge_angle,
-               plane_depth, lx, ly, lz, item, zbuf, xs, ys, xcross, won[s], covered[s])
+    won, covered, n_disc, _ = hemisphere_visibility(points, normals, vertices, elem_verts,
+                                                    resolution, edge_angle, plane_depth,
+                                                    horizon_eps)
     return won, covered, n_disc
