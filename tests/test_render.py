@@ -1,0 +1,128 @@
+"""The image: camera convention, radiance units, one-sidedness, the Cornell box end to end."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from daskrad import render
+from daskrad.io import read_exr
+from daskrad.kernels.grid import build_grid
+from daskrad.mesh import build_hierarchy, hierarchy_triangles, vertex_average
+from daskrad.scene import Camera, scene_from_arrays
+
+
+def _plane_context(radiance, normal_up=True, size=64, spp=1):
+    """A unit square in z = 0 seen from z = +1 (or its back), uniform vertex radiance."""
+    poly = np.array([[0, 1, 2, 3]]) if normal_up else np.array([[3, 2, 1, 0]])
+    scene = scene_from_arrays(
+        np.array([[-1.0, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]), poly, [0],
+        diffuse=[[0.5, 0.5, 0.5]], emission=[[1.0, 1.0, 1.0]])
+    h = build_hierarchy(scene, 1.0, 0.5)
+    tris, tri_verts, tri_elem = hierarchy_triangles(h)
+    cam = Camera(eye=np.array([0.0, 0.0, 1.0]), look_at=np.zeros(3), up=np.array([0.0, 1, 0]),
+                 fov=30.0, width=size, height=size)
+    vr = np.tile(np.asarray(radiance, float), (len(h.vertices), 1))
+    return render.RenderContext(grid=build_grid(tris), tri_verts=tri_verts, tri_element=tri_elem,
+                                elem_normal=h.elem_normal, vertex_radiance=vr, camera=cam,
+                                spp=spp)
+
+
+def test_uniform_plane_shows_its_radiance_and_back_is_black():
+    # The camera's view (fov 30° at distance 1) lies inside the 2×2 square: every pixel sees
+    # the plane, so every pixel is exactly the vertex radiance (Gouraud of a constant).
+    img = render.render(_plane_context([0.25, 0.5, 1.0]))
+    np.testing.assert_allclose(img, np.broadcast_to([0.25, 0.5, 1.0], img.shape), rtol=1e-12)
+    # The same plane wound the other way faces away from the camera: one-sided, so black.
+    back = render.render(_plane_context([0.25, 0.5, 1.0], normal_up=False))
+    assert np.all(back == 0.0)
+
+
+def test_tiles_assemble_to_the_same_image_whatever_the_tile_size():
+    ctx = _plane_context([1.0, 1.0, 1.0], size=50, spp=4)
+    whole = render.render_tile(ctx, slice(0, 50), slice(0, 50))
+    for tile in (7, 16, 64):
+        img = np.zeros_like(whole)
+        for rows, cols in render.tiles(50, 50, tile):
+            img[rows, cols] = render.render_tile(ctx, rows, cols)
+        np.testing.assert_array_equal(img, whole)
+
+
+def test_camera_right_is_forward_cross_up():
+    cam = Camera(eye=np.array([278.0, 273, -800]), look_at=np.array([278.0, 273, 0]),
+                 up=np.array([0.0, 1, 0]), fov=39.3077, width=8, height=8)
+    forward, right, up = render.camera_frame(cam)
+    np.testing.assert_allclose(forward, [0, 0, 1])
+    np.testing.assert_allclose(right, [-1, 0, 0])  # seen from -z, +x (the red wall) is left
+    np.testing.assert_allclose(up, [0, 1, 0])
+    o, d = render.primary_rays(cam, slice(0, 8), slice(0, 8), 1)
+    d = d.reshape(8, 8, 3)
+    assert d[4, 0, 0] > 0 and d[4, 7, 0] < 0       # column 0 looks towards +x
+    assert d[0, 4, 1] > 0 and d[7, 4, 1] < 0       # row 0 looks up
+    # horizontal field of view: the outer pixel edges are ±fov/2 from the axis
+    half = math.degrees(math.atan(math.tan(math.radians(39.3077) / 2) * 7 / 8))
+    assert math.degrees(math.atan2(abs(d[4, 0, 0]), d[4, 0, 2])) == pytest.approx(half, rel=1e-9)
+
+
+@pytest.fixture(scope="module")
+def cornell(tmp_path_factory, ):
+    from tests.conftest import SCENES
+
+    out = tmp_path_factory.mktemp("cb") / "cb.exr"
+    cmd = [sys.executable, "-m", "daskrad", "run", str(SCENES / "cornell_box.obj"), "-o",
+           str(out), "--workers", "0", "--width", "96", "--height", "96", "-q"]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    return out
+
+
+def test_cornell_box_image_is_finite_positive_with_walls_on_the_right_sides(cornell):
+    img = read_exr(cornell)
+    assert img.shape == (96, 96, 3)
+    assert np.isfinite(img).all() and (img >= 0).all()
+    mid = img[40:56]
+    left, right = mid[:, 2:10].mean(axis=(0, 1)), mid[:, -10:-2].mean(axis=(0, 1))
+    # red wall (0.63, 0.065, 0.05) on the left, green (0.14, 0.45, 0.091) on the right
+    assert left[0] > 3 * left[1] and left[0] > 3 * left[2]
+    assert right[1] > 2 * right[0] and right[1] > 2 * right[2]
+    # the light is visible at the top centre with its own radiance (Ke = 17, 12, 4)
+    top = img[:24, 30:66].reshape(-1, 3)
+    brightest = top[np.argmax(top.sum(axis=1))]
+    np.testing.assert_allclose(brightest, [17, 12, 4], rtol=0.02)
+
+
+def test_cornell_box_writes_preview_and_report(cornell):
+    from PIL import Image
+
+    png = Image.open(cornell.with_suffix(".png"))
+    assert png.size == (96, 96) and png.mode == "RGB"
+    report = json.loads(cornell.with_suffix(".json").read_text())
+    assert report["converged"] is True
+    assert report["counts"]["emitters"] == 1
+    rms = [h["relative_unshot_rms"] for h in report["unshot_rms_history"]]
+    assert rms[-1] <= report["settings"]["tolerance"]
+    assert report["iterations"] == report["unshot_rms_history"][-1]["iteration"]
+
+
+def test_bad_output_path_is_one_line_and_exit_2(tmp_path, scenes_dir):
+    cmd = [sys.executable, "-m", "daskrad", "run", str(scenes_dir / "cornell_box.obj"),
+           "-o", str(tmp_path / "missing" / "x.exr"), "--workers", "0", "-q"]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2
+    assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr
+    assert not (tmp_path / "missing").exists()
+
+
+def test_vertex_average_is_what_the_image_interpolates():
+    # vertex radiance of a uniform polygon equals the element value: no darkening at edges
+    scene = scene_from_arrays(np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]),
+                              np.array([[0, 1, 2, 3]]), [0], diffuse=[[0.5] * 3],
+                              emission=[[1.0] * 3])
+    h = build_hierarchy(scene, 0.5, 0.25)
+    values = np.full((h.n_elements, 3), 2.0)
+    np.testing.assert_allclose(vertex_average(h, values), 2.0, rtol=1e-12)
