@@ -121,7 +121,7 @@ def _clip(n, pa, pb, pc, ka, kb, kc, off, oa, ob, oc):
 
 @jit
 def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz, resolution,
-           weights, mask, xc, zc, lx, ly, lz, item, zbuf, xs, ys, xcross, out):
+           weights, mask, xc, zc, lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, out):
     """One shot: add each element's delta form factors into ``out (E,)``."""
     r = resolution
     h = side_rows(r)
@@ -193,13 +193,13 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz, reso
             nc = sc * nl[ic]
             if f == 0:
                 fill_polygon(xs, ys, m, e, xc, xc, r, r, -1.0, half_r, -1.0, half_r,
-                             mask[: r * r], na / c, nb / c, nc / c, 0.0, xcross,
+                             mask[: r * r], na / c, nb / c, nc / c, 0.0, xcross, cnt,
                              item[: r * r], zbuf[: r * r])
             else:
                 o0 = r * r + (f - 1) * r * h
                 o1 = o0 + r * h
                 fill_polygon(xs, ys, m, e, xc, zc, r, h, -1.0, half_r, 0.0, float(h),
-                             mask[o0:o1], na / c, nb / c, nc / c, 0.0, xcross,
+                             mask[o0:o1], na / c, nb / c, nc / c, 0.0, xcross, cnt,
                              item[o0:o1], zbuf[o0:o1])
     for k in range(item.shape[0]):
         if item[k] >= 0:
@@ -251,11 +251,12 @@ def hemicube_shots(points, normals, vertices, elem_verts, resolution, horizon_ep
     lz = np.empty(n_vert)
     xs = np.empty(12)
     ys = np.empty(12)
-    xcross = np.empty(12)
+    xcross = np.empty((r, 12))
+    cnt = np.zeros(r, dtype=np.int64)
     out = np.zeros((n_shot, n_elem))
     for s in range(n_shot):
         _shoot(points[s, 0], points[s, 1], points[s, 2],
                normals[s, 0], normals[s, 1], normals[s, 2],
                vertices, elem_verts, enrm, eoff, hz, r, weights, mask, xc, zc,
-               lx, ly, lz, item, zbuf, xs, ys, xcross, out[s])
+               lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, out[s])
     return out

@@ -104,70 +104,67 @@ def disc_pixels(resolution):
 
 
 @jit
-def _n_pieces(ax, ay, az, ra, bx, by, bz, rb, cos_thr, thr):
-    """Number of pieces ``ceil(angle/thr)`` for the edge ``a``–``b`` seen from the origin."""
-    dot = ax * bx + ay * by + az * bz
-    if dot >= cos_thr * ra * rb:
-        return 1
-    gx = ay * bz - az * by
-    gy = az * bx - ax * bz
-    gz = ax * by - ay * bx
-    angle = np.arctan2(np.sqrt(gx * gx + gy * gy + gz * gz), dot)
-    n = int(np.ceil(angle / thr))
-    return max(n, 1)
-
-
-@jit
 def _emit_edge(ax, ay, az, bx, by, bz, horizon, cos_thr, thr, xs, ys, m):
     """Append the projected polyline of the edge ``a → b`` (without ``b``) to ``xs, ys``.
 
     Returns the new length. ``horizon`` marks the edge made by the horizon clip, which is
     pushed out of the disc (see the module docstring).
+
+    The edge subtends ``θ`` at the origin; it is split into ``n = ceil(θ/thr)`` pieces of equal
+    angle ``δ = θ/n`` (eq. 4). The point of the edge at angle ``kδ`` from the canonical endpoint
+    ``c`` projects to the unit vector ``u_k = cos(kδ) ĉ + sin(kδ) ê`` (``ê`` the unit vector
+    perpendicular to ``ĉ`` in the plane through the edge and the origin), so the projection
+    (eqs. 1–3) is just ``(u_k.x, u_k.y)``: no point on the edge, no square root per point.
+    ``cos(kδ), sin(kδ)`` follow by the rotation recurrence (round-off ``~k ε``, ``k <= 180``).
     """
     ra = np.sqrt(ax * ax + ay * ay + az * az)
     rb = np.sqrt(bx * bx + by * by + bz * bz)
     xs[m] = ax / ra
     ys[m] = ay / ra
     m += 1
+    dot = ax * bx + ay * by + az * bz
+    split = dot < cos_thr * ra * rb
+    if not split and not horizon:
+        return m
     # Canonical endpoint first, so a neighbour traversing b → a computes identical points.
     swap = lex_less(bx, by, bz, ax, ay, az)
     if swap:
         cx, cy, cz, rc = bx, by, bz, rb
-        dx, dy, dz_, rd = ax, ay, az, ra
+        dx, dy, dz_ = ax, ay, az
     else:
         cx, cy, cz, rc = ax, ay, az, ra
-        dx, dy, dz_, rd = bx, by, bz, rb
-    n = _n_pieces(cx, cy, cz, rc, dx, dy, dz_, rd, cos_thr, thr)
+        dx, dy, dz_ = bx, by, bz
+    gx = cy * dz_ - cz * dy
+    gy = cz * dx - cx * dz_
+    gz = cx * dy - cy * dx
+    g = np.sqrt(gx * gx + gy * gy + gz * gz)
+    theta = np.arctan2(g, cx * dx + cy * dy + cz * dz_)
+    n = max(int(np.ceil(theta / thr)), 1) if split else 1
+    delta = theta / n
     if horizon:
         # Every chord of the pushed-out chain stays outside the unit circle.
-        scale = 1.0 / np.cos(0.5 * np.arctan2(
-            np.sqrt((cy * dz_ - cz * dy) ** 2 + (cz * dx - cx * dz_) ** 2
-                    + (cx * dy - cy * dx) ** 2),
-            cx * dx + cy * dy + cz * dz_) / n)
+        scale = 1.0 / np.cos(0.5 * delta)
         # Radial spike out of a (in traversal order a first).
         xs[m] = scale * ax / ra
         ys[m] = scale * ay / ra
         m += 1
     else:
         scale = 1.0
-    if n > 1:
-        # angle / n, recomputed here only for edges that really are split
-        gx = cy * dz_ - cz * dy
-        gy = cz * dx - cx * dz_
-        gz = cx * dy - cy * dx
-        delta = np.arctan2(np.sqrt(gx * gx + gy * gy + gz * gz),
-                           cx * dx + cy * dy + cz * dz_) / n
+    if n > 1 and g > 0.0:
+        # ĉ and ê = (g × c) / (|g| |c|), both unit; g = c × d is normal to the edge's plane.
+        ux = cx / rc
+        uy = cy / rc
+        ex = (gy * cz - gz * cy) / (g * rc)
+        ey = (gz * cx - gx * cz) / (g * rc)
+        cd = np.cos(delta)
+        sd = np.sin(delta)
+        ck = 1.0
+        sk = 0.0
         for k in range(1, n):
-            sa = rc * np.sin(k * delta)
-            sb = rd * np.sin((n - k) * delta)
-            t = sa / (sa + sb)
-            qx = cx + t * (dx - cx)
-            qy = cy + t * (dy - cy)
-            qz = cz + t * (dz_ - cz)
-            rq = np.sqrt(qx * qx + qy * qy + qz * qz)
+            ck, sk = ck * cd - sk * sd, sk * cd + ck * sd
             pos = m + (n - 1 - k if swap else k - 1)
-            xs[pos] = scale * qx / rq
-            ys[pos] = scale * qy / rq
+            xs[pos] = scale * (ck * ux + sk * ex)
+            ys[pos] = scale * (ck * uy + sk * ey)
         m += n - 1
     if horizon:
         # Radial spike back in to b (b itself is emitted by the next edge).
@@ -299,7 +296,7 @@ def depth_coefficients(plane_depth, qx, qy, qz, m, nlx, nly, nlz, c):
 
 @jit
 def fill_polygon(xs, ys, mm, e, xc, yc, ncol, nrow, x0, inv_px, y0, inv_py, mask,
-                 da, db, dc, de, xcross, item, zbuf):
+                 da, db, dc, de, xcross, cnt, item, zbuf):
     """Even-odd scan conversion of the closed polyline ``xs, ys (mm,)`` into a z-buffer.
 
     The shared rasterizer of the hemisphere base and the hemicube faces. The buffer has
@@ -308,7 +305,10 @@ def fill_polygon(xs, ys, mm, e, xc, yc, ncol, nrow, x0, inv_px, y0, inv_py, mask
     skipped (outside the unit disc); the nearness there is ``da x + db y + dc + de mask``
     (``mask = √(1-x²-y²)`` on the disc, so :func:`depth_coefficients` applies as is). Nearer
     (strictly larger) wins, so ties go to the element drawn first. Half-open rules make shared
-    edges watertight (module docstring). Returns the number of unmasked pixels covered.
+    edges watertight (module docstring). ``xcross (nrow, >= mm)`` and ``cnt (nrow,)`` are
+    scratch: each segment drops its crossings into the rows it spans (an edge table), so the
+    cost is the number of segments plus crossings, not segments × rows. Returns the number of
+    unmasked pixels covered.
     """
     ymin = np.inf
     ymax = -np.inf
@@ -317,36 +317,49 @@ def fill_polygon(xs, ys, mm, e, xc, yc, ncol, nrow, x0, inv_px, y0, inv_py, mask
         ymax = max(ymax, ys[a])
     j0 = max(int(np.ceil((ymin - y0) * inv_py - 0.5)) - 1, 0)
     j1 = min(int(np.floor((ymax - y0) * inv_py - 0.5)) + 1, nrow - 1)
+    if j0 > j1:
+        return 0
+    for j in range(j0, j1 + 1):
+        cnt[j] = 0
+    for a in range(mm):
+        b = a + 1 if a + 1 < mm else 0
+        # the lower endpoint first: a shared edge gives bit-identical crossings both ways
+        if ys[a] < ys[b]:
+            lo = a
+            hi = b
+        elif ys[b] < ys[a]:
+            lo = b
+            hi = a
+        else:
+            continue
+        ylo = ys[lo]
+        yhi = ys[hi]
+        slope = (xs[hi] - xs[lo]) / (yhi - ylo)
+        # candidate rows with one row of slack; the half-open test below decides exactly
+        ja = max(int(np.ceil((ylo - y0) * inv_py - 0.5)) - 1, j0)
+        jb = min(int(np.floor((yhi - y0) * inv_py - 0.5)) + 1, j1)
+        for j in range(ja, jb + 1):
+            ycj = yc[j]
+            if ylo <= ycj < yhi:
+                xcross[j, cnt[j]] = xs[lo] + (ycj - ylo) * slope
+                cnt[j] += 1
     cov = 0
     for j in range(j0, j1 + 1):
-        ycj = yc[j]
-        nc = 0
-        for a in range(mm):
-            b = a + 1 if a + 1 < mm else 0
-            ya = ys[a]
-            yb = ys[b]
-            if ya < yb:
-                if ya <= ycj < yb:
-                    xcross[nc] = xs[a] + (ycj - ya) * (xs[b] - xs[a]) / (yb - ya)
-                    nc += 1
-            elif yb < ya:
-                if yb <= ycj < ya:
-                    xcross[nc] = xs[b] + (ycj - yb) * (xs[a] - xs[b]) / (ya - yb)
-                    nc += 1
+        nc = cnt[j]
         if nc < 2:
             continue
         for a in range(1, nc):  # insertion sort: nc is almost always 2
-            x = xcross[a]
+            x = xcross[j, a]
             b = a - 1
-            while b >= 0 and xcross[b] > x:
-                xcross[b + 1] = xcross[b]
+            while b >= 0 and xcross[j, b] > x:
+                xcross[j, b + 1] = xcross[j, b]
                 b -= 1
-            xcross[b + 1] = x
+            xcross[j, b + 1] = x
         row = j * ncol
-        rowterm = db * ycj + dc
+        rowterm = db * yc[j] + dc
         for a in range(0, nc - 1, 2):
-            i_lo = max(int(np.ceil((xcross[a] - x0) * inv_px - 0.5)), 0)
-            i_hi = min(int(np.ceil((xcross[a + 1] - x0) * inv_px - 0.5)) - 1, ncol - 1)
+            i_lo = max(int(np.ceil((xcross[j, a] - x0) * inv_px - 0.5)), 0)
+            i_hi = min(int(np.ceil((xcross[j, a + 1] - x0) * inv_px - 0.5)) - 1, ncol - 1)
             for i in range(i_lo, i_hi + 1):
                 idx = row + i
                 mv = mask[idx]
@@ -378,7 +391,7 @@ def local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz):
 @jit
 def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
            resolution, centre, dz, cos_thr, thr, plane_depth,
-           lx, ly, lz, item, zbuf, xs, ys, xcross, won, covered, visible, gx, gy, gz):
+           lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, won, covered, visible, gx, gy, gz):
     """One shot: fill ``won (E,)``, ``covered (E,)`` (int32) and ``visible (E,)`` (bool), all
     zeroed by the caller; ``gx, gy, gz (E,)`` are scratch."""
     r = resolution
@@ -408,7 +421,7 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
             nlz = snx * enrm[e, 0] + sny * enrm[e, 1] + snz * enrm[e, 2]
             da, db, dc, de = depth_coefficients(plane_depth, qx, qy, qz, m, nlx, nly, nlz, c)
             cov = fill_polygon(xs, ys, mm, e, centre, centre, r, r, -1.0, half_r, -1.0, half_r,
-                               dz, da, db, dc, de, xcross, item, zbuf)
+                               dz, da, db, dc, de, xcross, cnt, item, zbuf)
         covered[e] = cov
         if cov == 0:
             # Too small to hold a pixel centre: remember the direction of its (clipped)
@@ -512,7 +525,8 @@ def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edg
     cap = edge_capacity(edge_angle)
     xs = np.empty(cap)
     ys = np.empty(cap)
-    xcross = np.empty(cap)
+    xcross = np.empty((r, cap))
+    cnt = np.zeros(r, dtype=np.int64)
     gx = np.empty(n_elem)
     gy = np.empty(n_elem)
     gz = np.empty(n_elem)
@@ -524,7 +538,7 @@ def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edg
         _shoot(points[s, 0], points[s, 1], points[s, 2],
                normals[s, 0], normals[s, 1], normals[s, 2],
                vertices, elem_verts, enrm, eoff, hz, r, centre, dz, cos_thr, edge_angle,
-               plane_depth, lx, ly, lz, item, zbuf, xs, ys, xcross, won[s], covered[s],
+               plane_depth, lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, won[s], covered[s],
                visible[s], gx, gy, gz)
     return won, covered, n_disc, visible
 
