@@ -1,11 +1,16 @@
 """Executors: where the pipeline's tasks run.
 
-Both executors expose the same three calls, so the pipeline is written once:
+Both executors expose the same calls, so the pipeline is written once:
 
+- ``set_geometry(shoot_ctx, generation=0)``: the form-factor task's context;
 - ``shots(batch_no, patch_ids)`` → handle with ``.result()`` = rows of
   :func:`daskrad.shoot.shoot_rows`;
-- ``tiles(tiles)`` → list of tile images of :func:`daskrad.render.render_tile`, in order;
+- ``tiles(render_ctx, tiles)`` → list of tile images of :func:`daskrad.render.render_tile`;
+- ``publish(key, value)``: progress for the dashboard (a no-op here);
 - ``close()``.
+
+The Dask executor (:mod:`daskrad.distributed.dask_executor`) also has ``direct(ctx, ranges)``;
+:func:`daskrad.direct.compute` runs the batches in-process when an executor lacks it.
 
 :class:`InProcess` runs every task at once in this process (``--workers 0``; tiny scenes need no
 cluster: starting one costs seconds).
@@ -39,7 +44,7 @@ class InProcess:
     def __init__(self, shoot_ctx: shoot.ShootContext | None = None):
         self.shoot_ctx = shoot_ctx
 
-    def set_geometry(self, shoot_ctx: shoot.ShootContext) -> None:
+    def set_geometry(self, shoot_ctx: shoot.ShootContext, generation: int = 0) -> None:
         self.shoot_ctx = shoot_ctx
 
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Done:
@@ -47,6 +52,9 @@ class InProcess:
 
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
         return [render.render_tile(ctx, rows, cols) for rows, cols in tiles]
+
+    def publish(self, key: str, value) -> None:
+        """No dashboard in-process: progress shows in the terminal only."""
 
     def close(self) -> None:
         pass

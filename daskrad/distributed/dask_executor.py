@@ -1,0 +1,197 @@
+"""The Dask executor: the same calls as :class:`~daskrad.distributed.executor.InProcess`,
+run as named futures on a cluster (DESIGN §4).
+
+Futures carry ids and ranges only; the geometry goes once into the store
+(:meth:`Store.put_context`) and each worker caches it (:mod:`daskrad.distributed.worker`).
+Keys are ``formfactor-<generation>-<batch>-<part>-<run>``,
+``direct-<generation>-<n>-<start>-<run>`` and ``tile-<generation>-<n>-<run>``: the dashboard
+groups them by their first word; the 8-hex run token keeps two runs on one cluster (or two
+runs of one test session) from sharing a key, since a key still held by the scheduler returns
+its old result (STACK.md).
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import tempfile
+import time
+import uuid
+from pathlib import Path
+
+import numpy as np
+
+from daskrad import render, shoot
+from daskrad.distributed import worker
+from daskrad.distributed.store import Store
+from daskrad.errors import OptionError
+
+#: Custom dashboard page module (``/daskrad``), added to the scheduler's HTTP routes.
+ROUTES_MODULE = "daskrad.distributed.dashboard"
+
+
+class _Batch:
+    """A batch's futures (one per part); ``result()`` joins the rows in shooter order."""
+
+    def __init__(self, futures: list, stats: dict):
+        self.futures = futures
+        self.stats = stats
+
+    def result(self) -> list:
+        t = time.perf_counter()
+        rows = []
+        for future in self.futures:
+            rows.extend(future.result())
+        self.stats["wait"] += time.perf_counter() - t
+        self.futures = []                  # release: the scheduler forgets the keys
+        return rows
+
+
+class DaskExecutor:
+    """Form factors and tiles as futures of ``client``.
+
+    Parameters
+    ----------
+    client : distributed.Client
+    store : Store, optional
+        Where task contexts go; a temporary store (usable by local workers only) if None.
+    cluster : optional
+        A cluster this executor started and closes in :meth:`close`.
+    own_client : bool
+        Close ``client`` in :meth:`close` (always when ``cluster`` is given); a client passed
+        in by the caller (a test's session cluster) is left open.
+    """
+
+    def __init__(self, client, store: Store | None = None, cluster=None,
+                 own_client: bool = False):
+        self.client = client
+        self.cluster = cluster
+        self.own_client = own_client or cluster is not None
+        self._tmp = None
+        if store is None:
+            self._tmp = tempfile.mkdtemp(prefix="daskrad-")
+            store = Store(Path(self._tmp) / "tasks.zarr")
+        self.store = store
+        self.run = uuid.uuid4().hex[:8]
+        self.workers = len(client.scheduler_info(n_workers=-1)["workers"])
+        self.dashboard_link = _dashboard(client)
+        self.stats = {"wait": 0.0, "tasks": 0}
+        self._shoot = None                 # (generation, token) of the current geometry
+        self._probed = False
+
+    # --- the executor interface -------------------------------------------------------------
+
+    def set_geometry(self, shoot_ctx: shoot.ShootContext, generation: int = 0) -> None:
+        token = self.store.put_context("shoot", shoot_ctx)
+        self._shoot = (generation, token)
+        self._probe("shoot", token)
+
+    def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Batch:
+        """Batch ``batch_no``, split into one task per worker so all of them work on it."""
+        generation, token = self._shoot
+        ids = np.asarray(patch_ids, np.int64)
+        parts = np.array_split(ids, max(1, min(len(ids), self.workers)))
+        futures = [
+            self.client.submit(worker.shoot_task, self.store.path, generation, token, part,
+                               key=f"formfactor-{generation}-{batch_no}-{n}-{self.run}",
+                               pure=False)
+            for n, part in enumerate(parts)]
+        self.stats["tasks"] += len(futures)
+        return _Batch(futures, self.stats)
+
+    def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
+        generation = self._shoot[0] if self._shoot else 0
+        token = self.store.put_context("render", ctx)
+        self._probe("render", token)
+        futures = [
+            self.client.submit(worker.tile_task, self.store.path, generation, token,
+                               rows.start, rows.stop, cols.start, cols.stop,
+                               key=f"tile-{generation}-{n}-{self.run}", pure=False)
+            for n, (rows, cols) in enumerate(tiles)]
+        self.stats["tasks"] += len(futures)
+        return self.client.gather(futures)
+
+    def direct(self, ctx, ranges: list[tuple[int, int]]) -> list[np.ndarray]:
+        """Direct light at vertex ranges as ``direct-<generation>-<n>`` futures, in order."""
+        generation = int(getattr(ctx, "generation", 0))
+        token = self.store.put_context("direct", ctx)
+        self._probe("direct", token)
+        futures = [
+            self.client.submit(worker.direct_task, self.store.path, generation, token, a, b,
+                               key=f"direct-{generation}-{n}-{a}-{self.run}", pure=False)
+            for n, (a, b) in enumerate(ranges)]
+        self.stats["tasks"] += len(futures)
+        return self.client.gather(futures)
+
+    def publish(self, key: str, value) -> None:
+        """Progress for the ``/daskrad`` page (scheduler metadata, small JSON values)."""
+        self.client.set_metadata(["daskrad", key], value)
+
+    def close(self) -> None:
+        if self.own_client:
+            self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+        if self._tmp is not None:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+
+    # --- helpers ----------------------------------------------------------------------------
+
+    def _probe(self, kind: str, token: str) -> None:
+        """Every worker must open the store: say clearly when a remote one cannot."""
+        if self._probed:
+            return
+        answers = self.client.run(worker.probe, self.store.path, kind, token)
+        bad = {w: why for w, why in answers.items() if why is not None}
+        if bad:
+            w, why = next(iter(bad.items()))
+            raise OptionError(
+                f"{len(bad)} of {len(answers)} workers cannot open the solution store "
+                f"{self.store.path} (e.g. {w}: {why}); with --scheduler the output must be "
+                "on a file system every worker shares", self.store.given)
+        self._probed = True
+
+
+def _dashboard(client) -> str | None:
+    try:
+        services = client.scheduler_info(n_workers=0).get("services", {})
+    except Exception:  # noqa: BLE001 - no dashboard is not an error
+        return None
+    return client.dashboard_link if "dashboard" in services else None
+
+
+def start_local(settings, store: Store | None) -> DaskExecutor:
+    """``--workers N``: a LocalCluster of N processes with one thread each, on loopback."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    routes = list(dask.config.get("distributed.scheduler.http.routes"))
+    with dask.config.set({"distributed.scheduler.http.routes": routes + [ROUTES_MODULE]}):
+        cluster = LocalCluster(
+            n_workers=settings.workers, threads_per_worker=1, processes=True,
+            host="127.0.0.1", dashboard_address=settings.dashboard,
+            # numba's threads match the worker's one thread: N workers share N cores
+            env={"NUMBA_NUM_THREADS": "1"}, silence_logs=logging.ERROR)
+    return DaskExecutor(Client(cluster), store, cluster=cluster)
+
+
+def connect_scheduler(settings, store: Store | None) -> DaskExecutor:
+    """``--scheduler ADDR``: an existing cluster; the store must be on a shared path."""
+    from distributed import Client
+
+    if store is not None and not Path(store.given).is_absolute():
+        raise OptionError(
+            "with --scheduler every worker opens the solution store itself, so the output "
+            f"must be an absolute path on a shared file system (got {store.given}; "
+            "e.g. -o /shared/run/out.exr)", store.given)
+    try:
+        client = Client(settings.scheduler, timeout=settings.connect_timeout)
+    except (OSError, TimeoutError) as err:
+        raise OptionError(f"cannot reach the Dask scheduler {settings.scheduler}: {err}") \
+            from err
+    try:
+        client.wait_for_workers(1, timeout=settings.connect_timeout)
+    except TimeoutError as err:
+        client.close()
+        raise OptionError(f"the Dask scheduler {settings.scheduler} has no workers") from err
+    return DaskExecutor(client, store, own_client=True)

@@ -1,0 +1,100 @@
+"""The client's ``on_batch`` hook: checkpoints into the store and progress for the dashboard.
+
+Checkpoints happen after every ``checkpoint_every``-th applied batch, counted by the solution's
+own history, so an interrupted and a resumed run checkpoint at the same states. Progress and
+the preview image are throttled by wall time: they are only watched, never read back, so timing
+may decide when they are sent without touching the result.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import math
+import time
+
+from daskrad import render, solve
+from daskrad.mesh import vertex_average
+
+#: Seconds between progress messages and between preview images sent to the scheduler.
+PUBLISH_SECONDS = 0.5
+PREVIEW_SECONDS = 3.0
+#: Preview width in pixels (one sample per pixel: a glance, not the image).
+PREVIEW_WIDTH = 96
+#: History points kept for the dashboard's curve.
+CURVE_POINTS = 400
+
+
+class Preview:
+    """A small tone-mapped PNG of the current solution, rendered in the client."""
+
+    def __init__(self, h, reflectance, tri_verts, tri_element, grid, camera):
+        self.h, self.reflectance = h, reflectance
+        scale = min(1.0, PREVIEW_WIDTH / camera.width)
+        cam = type(camera)(eye=camera.eye, look_at=camera.look_at, up=camera.up,
+                           fov=camera.fov, width=max(1, round(camera.width * scale)),
+                           height=max(1, round(camera.height * scale)))
+        self.ctx = render.RenderContext(grid=grid, tri_verts=tri_verts, tri_element=tri_element,
+                                        elem_normal=h.elem_normal, vertex_radiance=None,
+                                        camera=cam, spp=1)
+
+    def png_base64(self, sol: solve.Solution) -> str:
+        from dataclasses import replace
+
+        from PIL import Image
+
+        from daskrad.io import tonemap
+
+        amb = solve.ambient(self.h, self.reflectance, sol.unshot)
+        shown = sol.radiosity + self.reflectance * amb
+        ctx = replace(self.ctx, vertex_radiance=vertex_average(self.h, shown) / math.pi)
+        buf = io.BytesIO()
+        Image.fromarray(tonemap(render.render(ctx)), mode="RGB").save(buf, format="PNG")
+        return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+class Watch:
+    """``on_batch(sol)``: checkpoint every few batches, publish progress, then call ``then``."""
+
+    def __init__(self, store, executor, settings, h, title: str = "",
+                 preview: Preview | None = None, then=None):
+        self.store = store
+        self.publish = getattr(executor, "publish", None) if executor.workers else None
+        self.preview = preview if executor.dashboard_link else None
+        self.every = max(1, settings.checkpoint_every)
+        self.then = then
+        self.info = {"run": title, "workers": executor.workers, "elements": h.n_elements,
+                     "patches": h.n_patches, "tolerance": settings.tolerance}
+        self._sent = self._shown = -math.inf
+        self.seconds = 0.0                   # client time spent here (benchmarks read it)
+
+    def __call__(self, sol: solve.Solution) -> None:
+        t = time.perf_counter()
+        if self.store is not None and len(sol.history) % self.every == 0:
+            self.store.checkpoint(sol)
+        self._publish(sol, t)
+        self.seconds += time.perf_counter() - t
+        if self.then is not None:
+            self.then(sol)
+
+    def finish(self, sol: solve.Solution) -> None:
+        """The final checkpoint and progress message."""
+        if self.store is not None:
+            self.store.checkpoint(sol)
+        self._publish(sol, time.perf_counter(), force=True)
+
+    def _publish(self, sol, now: float, force: bool = False) -> None:
+        if self.publish is None or not (force or now - self._sent >= PUBLISH_SECONDS):
+            return
+        self._sent = now
+        hist = sol.history
+        step = max(1, math.ceil(len(hist) / CURVE_POINTS))
+        thinned = [list(x) for x in hist[::step]] + ([list(hist[-1])] if hist else [])
+        it, rms, sec = hist[-1] if hist else (sol.iteration, 1.0, sol.seconds)
+        self.publish("progress", {**self.info, "iteration": int(it),
+                                  "relative_unshot_rms": float(rms), "seconds": round(sec, 2),
+                                  "converged": bool(sol.converged), "history": thinned})
+        if self.preview is not None and (force or now - self._shown >= PREVIEW_SECONDS):
+            self._shown = now
+            self.publish("preview", self.preview.png_base64(sol))
+

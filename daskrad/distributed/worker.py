@@ -1,0 +1,79 @@
+"""What runs on a Dask worker: the task functions and the per-process context cache.
+
+A task names what it needs — the store's path, the mesh generation, the context's token and a
+few ids or a pixel range — and finds the geometry in this module's cache, filled once per
+(store path, generation, token) from the store (DESIGN §4). The cache lives in the package, not
+in ``__main__``, so it persists between tasks in a worker process (STACK.md: a task that
+reopens zarr costs 50–85 ms, a cache hit ~2 ms). The voxel grid of the render context is read
+from the store, so it is built once (by the client) and loaded once per worker.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections import OrderedDict
+
+import numpy as np
+
+from daskrad import render, shoot
+from daskrad.distributed.store import load_context
+
+#: Contexts kept per process: the current shoot and render contexts, plus one generation back
+#: while a refinement switches over.
+CACHE_SIZE = 4
+
+_cache: OrderedDict = OrderedDict()
+_lock = threading.Lock()          # a worker with several threads loads a context once
+loads = 0                         # contexts read from a store by this process (tests look)
+
+
+def context(path: str, kind: str, generation: int, token: str):
+    """The ``kind`` context of the store at ``path`` for ``generation``, cached."""
+    global loads
+    key = (path, kind, generation, token)
+    with _lock:
+        ctx = _cache.get(key)
+        if ctx is None:
+            ctx = load_context(path, kind, token)
+            loads += 1
+            _cache[key] = ctx
+            while len(_cache) > CACHE_SIZE:
+                _cache.popitem(last=False)
+        else:
+            _cache.move_to_end(key)
+    return ctx
+
+
+def shoot_task(path: str, generation: int, token: str, patch_ids: np.ndarray) -> list:
+    """Form-factor rows of the shooters ``patch_ids`` (:func:`daskrad.shoot.shoot_rows`)."""
+    return shoot.shoot_rows(context(path, "shoot", generation, token), patch_ids)
+
+
+def tile_task(path: str, generation: int, token: str, r0: int, r1: int, c0: int, c1: int
+              ) -> np.ndarray:
+    """Radiance of the pixels ``[r0, r1) × [c0, c1)`` (:func:`daskrad.render.render_tile`)."""
+    ctx = context(path, "render", generation, token)
+    return render.render_tile(ctx, slice(r0, r1), slice(c0, c1))
+
+
+def direct_task(path: str, generation: int, token: str, start: int, stop: int) -> np.ndarray:
+    """Direct irradiance at vertices ``[start, stop)`` (:func:`daskrad.direct.direct_vertices`)."""
+    from daskrad import direct
+
+    return direct.direct_vertices(context(path, "direct", generation, token), start, stop)
+
+
+def probe(path: str, kind: str, token: str) -> str | None:
+    """Run on every worker before the first task: None if the store is readable here,
+    else why not (the client turns it into one clear error)."""
+    try:
+        load_context(path, kind, token)
+    except Exception as err:  # noqa: BLE001 - any failure means "not usable from here"
+        return f"{type(err).__name__}: {err}"
+    return None
+
+
+def state() -> dict:
+    """This process's pid and cache statistics (tests and benchmarks call it via client.run)."""
+    return {"pid": os.getpid(), "loads": loads, "cached": len(_cache)}
