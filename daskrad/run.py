@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from daskrad import render, shoot, solve
+from daskrad.distributed.monitor import Preview, Watch
+from daskrad.distributed.store import Store
 from daskrad.errors import OptionError
 from daskrad.io import write_exr, write_png, write_report
 from daskrad.kernels.grid import build_grid
@@ -19,8 +21,10 @@ from daskrad.settings import Settings
 
 
 def run(scene_path, output, settings: Settings, progress: bool = True,
-        config=None) -> dict:
-    """Solve and render ``scene_path``; write ``output`` (.exr), .png and .json beside it.
+        config=None, resume: bool = False, executor=None) -> dict:
+    """Solve and render ``scene_path``; write ``output`` (.exr), .png, .json and the solution
+    store .zarr beside it. ``resume``: continue from the store's last checkpoint.
+    ``executor``: run on this one (left open) instead of the settings' choice.
 
     Returns the run report (also written as JSON).
     """
@@ -33,25 +37,30 @@ def run(scene_path, output, settings: Settings, progress: bool = True,
     t = time.perf_counter()
 
     scene = load_scene(scene_path, config)                                   # 1 preprocess
-    executor = _executor(settings)
+    store = Store(output.with_suffix(".zarr"), settings, resume=resume)
+    executor = executor or _executor(settings, store)
+    store.open()
+    if executor.dashboard_link:
+        print(f"daskrad: dashboard {executor.dashboard_link} (progress: "
+              f"{executor.dashboard_link.rsplit('/', 1)[0]}/daskrad)", file=sys.stderr)
     try:
         bar = _Bar(settings, enabled=progress)
+        extra: dict = {}
         h, reflectance, sol, grid_parts = solve_scene(scene, settings, executor, seconds,
-                                                      on_batch=bar)       # 2 direct, 3 shoot
+                                                      on_batch=bar, extra=extra,
+                                                      store=store)              # 2, 3
         bar.close()
         t = time.perf_counter()
         tris, tri_verts, tri_elem, grid = grid_parts
         amb = solve.ambient(h, reflectance, sol.unshot)                      # 4 per-pixel pass
-        shown = sol.radiosity + reflectance * amb
         camera = _camera(scene, settings)
-        ctx = render.RenderContext(grid=grid, tri_verts=tri_verts, tri_element=tri_elem,
-                                   elem_normal=h.elem_normal,
-                                   vertex_radiance=vertex_average(h, shown) / math.pi,
-                                   camera=camera, spp=settings.spp)
+        ctx = _render_context(scene, settings, h, reflectance, sol, amb, extra,
+                              (tri_verts, tri_elem, grid), camera)
         tiles = render.tiles(camera.width, camera.height)
         image = np.zeros((camera.height, camera.width, 3))
         for (rows, cols), tile in zip(tiles, executor.tiles(ctx, tiles), strict=True):
             image[rows, cols] = tile
+        store.finish(ctx.vertex_radiance * math.pi)
         seconds["render"], t = time.perf_counter() - t, time.perf_counter()
     finally:
         executor.close()
@@ -88,11 +97,15 @@ def run(scene_path, output, settings: Settings, progress: bool = True,
 
 
 def solve_scene(scene, settings: Settings, executor=None, seconds: dict | None = None,
-                on_batch=None):
-    """Steps 1–3 on a loaded scene: hierarchy, grid, emission, shooting.
+                on_batch=None, extra: dict | None = None, store=None):
+    """Steps 1–3 on a loaded scene: hierarchy, grid, direct light and subdivision, shooting.
 
     Returns ``(hierarchy, reflectance (E, 3), solution, (triangles, tri_verts, tri_element,
-    grid))``. ``executor`` defaults to in-process; ``seconds`` collects step timings.
+    grid))``, the hierarchy after adaptive subdivision. ``executor`` defaults to in-process;
+    ``seconds`` collects step timings; ``extra`` (a dict) receives the direct pass's
+    ``vertex_irradiance (V, 3)``, ``tvertices``, ``direct_context`` and ``levels``.
+    ``store`` (a :class:`~daskrad.distributed.store.Store`) receives the hierarchy and
+    checkpoints, and when resuming gives the solution to continue from.
     """
     from daskrad.distributed.executor import InProcess
 
@@ -102,29 +115,130 @@ def solve_scene(scene, settings: Settings, executor=None, seconds: dict | None =
     h = build_hierarchy(scene, settings.patch_size, settings.element_size)
     tris, tri_verts, tri_elem = hierarchy_triangles(h)
     grid = build_grid(tris)
-    mat = h.elem_material
-    reflectance = scene.materials.diffuse[mat]
-    emission = math.pi * scene.materials.emission[mat]         # Ke is radiance; exitance = πKe
+    emission = math.pi * scene.materials.emission[h.elem_material]  # Ke radiance; exitance πKe
     seconds["preprocess"], t = time.perf_counter() - t, time.perf_counter()
 
-    sol = solve.initial_solution(h, emission)
+    h, grid, tris, tri_verts, tri_elem, sol = _direct_pass(
+        scene, settings, h, grid, tris, tri_verts, tri_elem, emission, executor, seconds, extra)
+    reflectance = scene.materials.diffuse[h.elem_material]
+    t = time.perf_counter()
+    watch = None
+    if store is not None:  # hierarchy once per generation; checkpoints; dashboard progress
+        sol = store.begin(h, reflectance, sol)
+        preview = Preview(h, reflectance, tri_verts, tri_elem, grid, _camera(scene, settings))
+        on_batch = watch = Watch(store, executor, settings, h, str(scene.path), preview,
+                                 then=on_batch)
     executor.set_geometry(shoot.make_context(h, settings.method, settings.resolution,
-                                             edge_angle=settings.edge_angle))
+                                             edge_angle=settings.edge_angle), h.generation)
     sol = solve.solve(h, reflectance, sol, executor.shots, batch=settings.batch,
                       tolerance=settings.tolerance, max_iterations=settings.max_iterations,
                       on_batch=on_batch)
+    if watch is not None:
+        watch.finish(sol)
     seconds["solve"] = time.perf_counter() - t
     return h, reflectance, sol, (tris, tri_verts, tri_elem, grid)
 
 
-def _executor(settings: Settings):
+def _render_context(scene, settings, h, reflectance, sol, amb, extra, grid_parts, camera):
+    """The tile renderer's context: vertex radiance split into its interpolated part and the
+    direct part (exact at vertices), T-vertices resolved from their edges (no seams)."""
+    from daskrad import direct
+    from daskrad.mesh.refine import TVertices, resolve_tvertices
+
+    tri_verts, tri_elem, grid = grid_parts
+    H = extra.get("vertex_irradiance")
+    tv = extra.get("tvertices") or TVertices.empty()
+    if H is None:
+        indirect = vertex_average(h, sol.radiosity + reflectance * amb)
+        direct_v = np.zeros_like(indirect)
+    else:
+        # the direct part is known exactly at every vertex: E + ρ H (one polygon per vertex)
+        emission = math.pi * scene.materials.emission[h.elem_material]
+        direct_v = (direct.vertex_reflectance(h, emission)
+                    + direct.vertex_reflectance(h, reflectance) * H)
+        indirect = vertex_average(h, sol.radiosity - sol.direct + reflectance * amb)
+        # what the direct pass gathered beyond E + ρH of the vertices (nothing, in two-pass;
+        # with emitters shot, their direct light is part of `indirect`)
+    indirect = resolve_tvertices(indirect, tv) / math.pi
+    direct_v = resolve_tvertices(direct_v, tv) / math.pi
+    return render.RenderContext(grid=grid, tri_verts=tri_verts, tri_element=tri_elem,
+                                elem_normal=h.elem_normal, vertex_radiance=indirect + direct_v,
+                                camera=camera, spp=settings.spp)
+
+
+def _direct_pass(scene, settings, h, grid, tris, tri_verts, tri_elem, emission, executor,
+                 seconds, extra):
+    """Step 2: direct light at vertices, adaptive subdivision, the start of the solution.
+
+    With ``settings.two_pass`` area lights are gathered here and never shot; otherwise they
+    are shot like any patch and only point and directional lights are gathered.
+    """
+    from daskrad import direct
+    from daskrad.mesh.refine import MIN_SIZE_DIVISOR, TVertices, refine
+
+    extra = {} if extra is None else extra
+    has_point = len(scene.point_lights) or len(scene.directional_lights)
+    if not (has_point or (settings.two_pass and scene.emitting.any())):
+        extra.update(vertex_irradiance=None, tvertices=TVertices.empty(), direct_context=None,
+                     levels=0)
+        return h, grid, tris, tri_verts, tri_elem, solve.initial_solution(h, emission)
+    t = time.perf_counter()
+    ctx = direct.make_context(scene, h, grid, settings.area_samples)
+    if not settings.two_pass:  # emitters are shot: gather point and directional lights only
+        ctx = _without_emitters(ctx)
+    H = direct.compute(ctx, 0, len(h.vertices), executor)
+    diffuse = scene.materials.diffuse
+
+    def evaluate(h2, start, stop):
+        part = direct.compute(direct.with_hierarchy(ctx, h2), start, stop, executor)
+        parts.append(part)
+        rho = direct.vertex_reflectance(h2, diffuse[h2.elem_material])[start:stop]
+        return rho * part
+
+    parts = [H]
+    element_size = settings.element_size or default_sizes(scene)[1]
+    min_size = settings.min_element_size or element_size / MIN_SIZE_DIVISOR
+    rho_v = direct.vertex_reflectance(h, diffuse[h.elem_material])
+    h, _, tv, levels = refine(h, rho_v * H, evaluate, threshold=settings.subdivide,
+                              min_size=min_size)
+    H = np.concatenate(parts)
+    if levels:
+        tris, tri_verts, tri_elem = hierarchy_triangles(h)
+        grid = build_grid(tris)
+        ctx = direct.with_hierarchy(ctx, h)
+    mat = h.elem_material
+    emission = math.pi * scene.materials.emission[mat]
+    reflected = diffuse[mat] * direct.element_mean(h, H)
+    if settings.two_pass:
+        sol = solve.initial_solution(h, emission, reflected)
+    else:  # emitters are shot like any patch, on top of the gathered point/directional light
+        sol = solve.initial_solution(h, emission)
+        sol.radiosity += reflected
+        sol.direct += reflected
+        sol.unshot += solve.patch_average(h, reflected)
+        sol.initial_rms = solve.unshot_rms(sol.unshot, h.patch_area)
+    extra.update(vertex_irradiance=H, tvertices=tv, direct_context=ctx, levels=levels)
+    seconds["direct"] = time.perf_counter() - t
+    return h, grid, tris, tri_verts, tri_elem, sol
+
+
+def _without_emitters(ctx):
+    """The direct context with no area light (emitters are shot instead)."""
+    from dataclasses import replace
+
+    return replace(ctx, emitter_corners=np.zeros((0, 4, 3)),
+                   emitter_count=np.zeros(0, np.int64), emitter_normal=np.zeros((0, 3)),
+                   emitter_radiance=np.zeros((0, 3)), emitter_area=np.zeros(0))
+
+
+def _executor(settings: Settings, store=None):
     from daskrad.distributed.executor import InProcess
 
     if settings.workers == 0 and settings.scheduler is None:
         return InProcess()
     from daskrad.distributed import connect
 
-    return connect(settings)
+    return connect(settings, store)
 
 
 def _camera(scene, settings: Settings):
@@ -179,7 +293,8 @@ def settings_from_args(args) -> Settings:
 def run_cli(args) -> None:
     settings = settings_from_args(args)
     output = args.output or str(Path(args.scene).with_suffix(".exr").name)
-    run(args.scene, output, settings, progress=not args.quiet, config=args.config)
+    run(args.scene, output, settings, progress=not args.quiet, config=args.config,
+        resume=args.resume)
     print(f"wrote {output}, {Path(output).with_suffix('.png')}, "
           f"{Path(output).with_suffix('.json')}")
 

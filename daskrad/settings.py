@@ -24,6 +24,16 @@ class Settings:
     width: int | None = None            # image size; None: the camera's
     height: int | None = None
     seed: int = 0
+    checkpoint_every: int = 8           # batches between checkpoints into OUT.zarr
+    dashboard: str = "127.0.0.1:8787"   # --workers N: dashboard bind address (loopback only)
+    connect_timeout: float = 30.0       # --scheduler: seconds to reach it and see a worker
+    # two-pass lighting (issue 5): direct light at vertices, adaptive subdivision, per pixel
+    two_pass: bool = True               # area lights gathered at vertices, not shot
+    area_samples: int = 4               # shadow rays per area light: area_samples²
+    subdivide: float = 0.5              # relative spread of ρH splitting an element; 0: off
+    min_element_size: float | None = None  # None: element size / 8
+    rdiff: float = 0.1                  # eq. 9 threshold, relative to the mean vertex radiance
+    mirror_depth: int = 4               # mirror bounces per pixel ray
 
     def replace(self, **changes) -> Settings:
         return replace(self, **changes)
