@@ -1,0 +1,117 @@
+"""Adaptive subdivision around shadow boundaries (issue 5, item 2)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from daskrad import direct
+from daskrad.kernels.grid import build_grid
+from daskrad.mesh import build_hierarchy, hierarchy_triangles
+from daskrad.mesh.refine import refine, resolve_tvertices
+from tests.test_direct import _blocker_scene, _in_shadow
+
+ELEMENT = 0.5
+MIN_SIZE = ELEMENT / 8
+
+
+def _expected_floor_elements(x0, z0, size):
+    """Independent count: a square floor element splits when its corners' shadow states
+    differ (relative spread 1 > threshold) and its edge exceeds the minimum size."""
+    corners = np.array([[x0, 0, z0], [x0 + size, 0, z0], [x0 + size, 0, z0 + size],
+                        [x0, 0, z0 + size]])
+    dark = _in_shadow(corners)
+    if dark.all() or not dark.any() or size <= MIN_SIZE * (1 + 1e-9):
+        return 1
+    half = size / 2
+    return sum(_expected_floor_elements(x0 + i * half, z0 + j * half, half)
+               for i in (0, 1) for j in (0, 1))
+
+
+def _refined():
+    scene = _blocker_scene()
+    h = build_hierarchy(scene, 4.0, ELEMENT)
+    tris, _, _ = hierarchy_triangles(h)
+    ctx = direct.make_context(scene, h, build_grid(tris))
+    H = direct.compute(ctx, 0, len(h.vertices))
+    calls = []
+
+    def evaluate(h2, start, stop):
+        calls.append((start, stop, len(h2.vertices), h2.generation))
+        return 0.5 * direct.compute(direct.with_hierarchy(ctx, h2), start, stop)  # ρ H
+
+    h2, H2, tv, levels = refine(h, 0.5 * H, evaluate, threshold=0.5, min_size=MIN_SIZE)
+    return h, h2, H2 / 0.5, tv, levels, calls, ctx
+
+
+def test_subdivision_refines_around_the_shadow_and_nowhere_else():
+    h, h2, H2, tv, levels, calls, _ = _refined()
+    floor = h2.elem_normal[:, 1] > 0.5
+    expected = sum(_expected_floor_elements(-2 + i * ELEMENT, -2 + j * ELEMENT, ELEMENT)
+                   for i in range(8) for j in range(8))
+    assert int(floor.sum()) == expected
+    assert expected > 64                      # the shadow's outline did cause splits
+    # the blocker (lit from behind: no light at all) is untouched
+    assert int((~floor).sum()) == int((h.elem_normal[:, 1] < -0.5).sum())
+    assert levels == 3 and h2.generation == h.generation + 3
+    # direct light was computed only at the new vertices of each level, once
+    starts = [c[0] for c in calls]
+    stops = [c[1] for c in calls]
+    assert starts[0] == len(h.vertices) and starts[1:] == stops[:-1]
+    assert stops[-1] == len(h2.vertices) == len(H2)
+
+
+def test_refined_mesh_keeps_areas_and_the_shadow_area_converges():
+    h, h2, H2, tv, _, _, _ = _refined()
+    np.testing.assert_allclose(np.bincount(h2.elem_patch, weights=h2.elem_area),
+                               h.patch_area, rtol=1e-12)
+    # elements stay contiguous per patch
+    assert np.all(np.diff(h2.elem_patch) >= 0)
+    # shadow area from the element means: only elements cut by the outline (perimeter 4,
+    # edge MIN_SIZE) are uncertain, so the error is below 4 · MIN_SIZE · ½ = 0.125
+    lit = 2.0 / np.sqrt(1.09)
+    He = direct.element_mean(h2, H2)
+    on_floor = h2.elem_normal[:, 1] > 0.5
+    dark = 16.0 - (h2.elem_area * He[:, 0])[on_floor].sum() / lit
+    assert abs(dark - 1.0) < 4 * MIN_SIZE * 0.5
+
+
+def test_tvertices_lie_on_their_edge_and_are_resolved_from_it():
+    _, h2, H2, tv, _, _, _ = _refined()
+    assert len(tv.vertex) > 0
+    v = h2.vertices
+    np.testing.assert_allclose(v[tv.vertex], 0.5 * (v[tv.a] + v[tv.b]), atol=1e-15)
+    # each T-vertex's edge is an edge of some element (the coarse side)
+    ev = h2.elem_verts
+    edges = {tuple(sorted((int(e[i]), int(e[(i + 1) % 4])))) for e in ev for i in range(4)}
+    assert all((min(a, b), max(a, b)) in edges for a, b in zip(tv.a, tv.b, strict=True))
+    shown = resolve_tvertices(H2, tv)
+    np.testing.assert_array_equal(shown[tv.vertex], 0.5 * (shown[tv.a] + shown[tv.b]))
+    others = np.setdiff1d(np.arange(len(v)), tv.vertex)
+    np.testing.assert_array_equal(shown[others], H2[others])
+
+
+def test_no_refinement_under_uniform_light():
+    # A directional light straight down with nothing in the way: H is the same everywhere.
+    _, h2, _, tv, levels, calls, _ = _refined_uniform()
+    assert levels == 0 and not calls and len(tv.vertex) == 0
+
+
+def _refined_uniform():
+    from daskrad.scene import scene_from_arrays
+
+    v = np.array([[-2.0, 0, -2], [-2, 0, 2], [2, 0, 2], [2, 0, -2]])
+    scene = scene_from_arrays(v, np.array([[0, 1, 2, 3]]), [0], diffuse=[[0.5] * 3],
+                              emission=[[0, 0, 0]],
+                              directional_lights=(np.array([[0.0, -1, 0]]), [[1.0] * 3]))
+    h = build_hierarchy(scene, 4.0, ELEMENT)
+    tris, _, _ = hierarchy_triangles(h)
+    ctx = direct.make_context(scene, h, build_grid(tris))
+    H = direct.compute(ctx, 0, len(h.vertices))
+    calls = []
+
+    def evaluate(h2, start, stop):
+        calls.append((start, stop))
+        return direct.compute(direct.with_hierarchy(ctx, h2), start, stop)
+
+    h2, H2, tv, levels = refine(h, H, evaluate, threshold=0.5, min_size=MIN_SIZE)
+    return h, h2, H2, tv, levels, calls, ctx
