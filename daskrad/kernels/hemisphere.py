@@ -104,18 +104,34 @@ def disc_pixels(resolution):
 
 
 @jit
-def _emit_edge(ax, ay, az, bx, by, bz, horizon, cos_thr, thr, xs, ys, m):
+def split_table(edge_angle):
+    """Table for :func:`_emit_edge`: ``[0]`` is ``sin(thr)``, ``[k]`` is ``cos(k·thr)`` for
+    ``1 <= k < K`` and ``[K] = -2`` (``K = ceil(π/thr)``: no straight edge subtends more), so the
+    piece count of an edge follows from its cosine by a search, with no trigonometry per edge.
+    ``edge_angle`` (= thr) in radians, in ``(0, π/2]``."""
+    k_max = int(np.ceil(np.pi / edge_angle))
+    tab = np.empty(k_max + 1)
+    tab[0] = np.sin(edge_angle)
+    for k in range(1, k_max):
+        tab[k] = np.cos(k * edge_angle)
+    tab[k_max] = -2.0
+    return tab
+
+
+@jit
+def _emit_edge(ax, ay, az, bx, by, bz, horizon, cos_thr, tab, xs, ys, m):
     """Append the projected polyline of the edge ``a → b`` (without ``b``) to ``xs, ys``.
 
     Returns the new length. ``horizon`` marks the edge made by the horizon clip, which is
-    pushed out of the disc (see the module docstring).
+    pushed out of the disc (see the module docstring). ``tab`` is :func:`split_table`.
 
-    The edge subtends ``θ`` at the origin; it is split into ``n = ceil(θ/thr)`` pieces of equal
-    angle ``δ = θ/n`` (eq. 4). The point of the edge at angle ``kδ`` from the canonical endpoint
-    ``c`` projects to the unit vector ``u_k = cos(kδ) ĉ + sin(kδ) ê`` (``ê`` the unit vector
-    perpendicular to ``ĉ`` in the plane through the edge and the origin), so the projection
-    (eqs. 1–3) is just ``(u_k.x, u_k.y)``: no point on the edge, no square root per point.
-    ``cos(kδ), sin(kδ)`` follow by the rotation recurrence (round-off ``~k ε``, ``k <= 180``).
+    The edge subtends ``θ`` at the origin; it is split into ``n = ceil(θ/thr)`` pieces (eq. 4):
+    points at the angles ``k·thr`` (``k < n``) from the canonical endpoint ``c``, so every piece
+    subtends ``thr`` except the last, which subtends ``θ - (n-1) thr <= thr``. The point of the
+    edge at angle ``φ`` from ``c`` projects to the unit vector ``cos φ ĉ + sin φ ê`` (``ê`` the unit
+    vector perpendicular to ``ĉ`` in the plane through the edge and the origin), so the
+    projection (eqs. 1–3) is just its ``(x, y)``: no point on the edge, no square root per point;
+    ``cos(k·thr), sin(k·thr)`` follow by the rotation recurrence (round-off ``~k ε``).
     """
     ra = np.sqrt(ax * ax + ay * ay + az * az)
     rb = np.sqrt(bx * bx + by * by + bz * bz)
@@ -134,38 +150,53 @@ def _emit_edge(ax, ay, az, bx, by, bz, horizon, cos_thr, thr, xs, ys, m):
     else:
         cx, cy, cz, rc = ax, ay, az, ra
         dx, dy, dz_ = bx, by, bz
-    gx = cy * dz_ - cz * dy
-    gy = cz * dx - cx * dz_
-    gz = cx * dy - cy * dx
-    g = np.sqrt(gx * gx + gy * gy + gz * gz)
-    theta = np.arctan2(g, cx * dx + cy * dy + cz * dz_)
-    n = max(int(np.ceil(theta / thr)), 1) if split else 1
-    delta = theta / n
+    cos_theta = (cx * dx + cy * dy + cz * dz_) / (ra * rb)
+    n = 1
+    if split:
+        # smallest n with cos θ >= cos(n·thr), i.e. θ <= n·thr (tab is decreasing)
+        lo = 1
+        hi = tab.shape[0] - 1
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if cos_theta >= tab[mid]:
+                hi = mid
+            else:
+                lo = mid + 1
+        n = max(lo, 2)
     if horizon:
-        # Every chord of the pushed-out chain stays outside the unit circle.
-        scale = 1.0 / np.cos(0.5 * delta)
+        # Every chord of the pushed-out chain stays outside the unit circle: a chord
+        # subtending φ lies cos(φ/2) from the centre, φ <= thr when split, θ otherwise.
+        if split:
+            scale = 1.0 / np.sqrt(0.5 * (1.0 + tab[1]))
+        else:
+            scale = 1.0 / np.sqrt(0.5 * (1.0 + min(cos_theta, 1.0)))
         # Radial spike out of a (in traversal order a first).
         xs[m] = scale * ax / ra
         ys[m] = scale * ay / ra
         m += 1
     else:
         scale = 1.0
-    if n > 1 and g > 0.0:
-        # ĉ and ê = (g × c) / (|g| |c|), both unit; g = c × d is normal to the edge's plane.
-        ux = cx / rc
-        uy = cy / rc
-        ex = (gy * cz - gz * cy) / (g * rc)
-        ey = (gz * cx - gx * cz) / (g * rc)
-        cd = np.cos(delta)
-        sd = np.sin(delta)
-        ck = 1.0
-        sk = 0.0
-        for k in range(1, n):
-            ck, sk = ck * cd - sk * sd, sk * cd + ck * sd
-            pos = m + (n - 1 - k if swap else k - 1)
-            xs[pos] = scale * (ck * ux + sk * ex)
-            ys[pos] = scale * (ck * uy + sk * ey)
-        m += n - 1
+    if n > 1:
+        gx = cy * dz_ - cz * dy
+        gy = cz * dx - cx * dz_
+        gz = cx * dy - cy * dx
+        g = np.sqrt(gx * gx + gy * gy + gz * gz)
+        if g > 0.0:
+            # ĉ and ê = (g × c) / (|g| |c|), both unit; g = c × d is normal to the edge's plane.
+            ux = cx / rc
+            uy = cy / rc
+            ex = (gy * cz - gz * cy) / (g * rc)
+            ey = (gz * cx - gx * cz) / (g * rc)
+            cd = tab[1]
+            sd = tab[0]
+            ck = 1.0
+            sk = 0.0
+            for k in range(1, n):
+                ck, sk = ck * cd - sk * sd, sk * cd + ck * sd
+                pos = m + (n - 1 - k if swap else k - 1)
+                xs[pos] = scale * (ck * ux + sk * ex)
+                ys[pos] = scale * (ck * uy + sk * ey)
+            m += n - 1
     if horizon:
         # Radial spike back in to b (b itself is emitted by the next edge).
         xs[m] = scale * bx / rb
@@ -175,7 +206,19 @@ def _emit_edge(ax, ay, az, bx, by, bz, horizon, cos_thr, thr, xs, ys, m):
 
 
 @jit
-def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz, cos_thr, thr,
+def _faces(e, sx, sy, sz, elem_verts, enrm, eoff, lz, hz):
+    """Whether element ``e`` faces the point (one-sided) and reaches above ``z = hz``."""
+    if not eoff[e] - (enrm[e, 0] * sx + enrm[e, 1] * sy + enrm[e, 2] * sz) < 0.0:
+        return False
+    k = 4 if elem_verts[e, 3] >= 0 else 3
+    for a in range(k):
+        if lz[elem_verts[e, a]] > hz:
+            return True
+    return False
+
+
+@jit
+def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz, cos_thr, tab,
                     cx, cy, cz, qx, qy, qz, qclip, xs, ys):
     """Steps 2–5 for element ``e``: cull, clip at ``z = hz``, split edges, project.
 
@@ -242,7 +285,7 @@ def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz, cos_t
     for a in range(m):
         b = (a + 1) % m
         mm = _emit_edge(qx[a], qy[a], qz[a], qx[b], qy[b], qz[b],
-                        qclip[a] and qclip[b], cos_thr, thr, xs, ys, mm)
+                        qclip[a] and qclip[b], cos_thr, tab, xs, ys, mm)
     return m, mm, c
 
 
@@ -390,7 +433,7 @@ def local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz):
 
 @jit
 def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
-           resolution, centre, dz, cos_thr, thr, plane_depth,
+           resolution, centre, dz, cos_thr, tab, plane_depth,
            lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, won, covered, visible, gx, gy, gz):
     """One shot: fill ``won (E,)``, ``covered (E,)`` (int32) and ``visible (E,)`` (bool), all
     zeroed by the caller; ``gx, gy, gz (E,)`` are scratch."""
@@ -410,8 +453,10 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
     n_elem = elem_verts.shape[0]
     n_small = 0
     for e in range(n_elem):
+        if not _faces(e, sx, sy, sz, elem_verts, enrm, eoff, lz, hz):
+            continue  # culled here, before the call with many array arguments
         m, mm, c = project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz,
-                                   cos_thr, thr, cx, cy, cz, qx, qy, qz, qclip, xs, ys)
+                                   cos_thr, tab, cx, cy, cz, qx, qy, qz, qclip, xs, ys)
         if m < 3:
             continue
         cov = 0
@@ -534,10 +579,11 @@ def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edg
     covered = np.zeros((n_shot, n_elem), dtype=np.int32)
     visible = np.zeros((n_shot, n_elem), dtype=np.bool_)
     cos_thr = np.cos(edge_angle)
+    tab = split_table(edge_angle)
     for s in range(n_shot):
         _shoot(points[s, 0], points[s, 1], points[s, 2],
                normals[s, 0], normals[s, 1], normals[s, 2],
-               vertices, elem_verts, enrm, eoff, hz, r, centre, dz, cos_thr, edge_angle,
+               vertices, elem_verts, enrm, eoff, hz, r, centre, dz, cos_thr, tab,
                plane_depth, lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, won[s], covered[s],
                visible[s], gx, gy, gz)
     return won, covered, n_disc, visible

@@ -38,6 +38,7 @@ from daskrad.kernels.hemisphere import (
     edge_capacity,
     local_frame,
     project_element,
+    split_table,
 )
 
 
@@ -51,7 +52,7 @@ def _grow(arr, n):
 
 @jit
 def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz, n_lines,
-           cos_thr, thr, plane_depth, transpose, lx, ly, lz, xs, ys, xcross, coef, out):
+           cos_thr, tab, plane_depth, transpose, lx, ly, lz, xs, ys, xcross, coef, out):
     """One scanline pass of one shot; adds ``(span length of e) / Σ chords`` into ``out (E,)``.
 
     ``transpose`` swaps the roles of ``x`` and ``y`` (vertical scanlines).
@@ -81,7 +82,7 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz, n_li
     n_elem = elem_verts.shape[0]
     for e in range(n_elem):
         m, mm, c = project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz,
-                                   cos_thr, thr, cx, cy, cz, qx, qy, qz, qclip, xs, ys)
+                                   cos_thr, tab, cx, cy, cz, qx, qy, qz, qclip, xs, ys)
         if mm == 0:
             continue
         nlx = t1x * enrm[e, 0] + t1y * enrm[e, 1] + t1z * enrm[e, 2]
@@ -252,12 +253,13 @@ def scanline_shots(points, normals, vertices, elem_verts, n_lines, edge_angle, p
     coef = np.zeros((n_elem, 4))
     out = np.zeros((n_shot, n_elem))
     cos_thr = np.cos(edge_angle)
+    tab = split_table(edge_angle)
     n_pass = 2 if both_axes else 1
     for s in range(n_shot):
         for p in range(n_pass):
             _shoot(points[s, 0], points[s, 1], points[s, 2],
                    normals[s, 0], normals[s, 1], normals[s, 2],
-                   vertices, elem_verts, enrm, eoff, hz, n_lines, cos_thr, edge_angle,
+                   vertices, elem_verts, enrm, eoff, hz, n_lines, cos_thr, tab,
                    plane_depth, p == 1, lx, ly, lz, xs, ys, xcross, coef, out[s])
         if n_pass == 2:
             for e in range(n_elem):
