@@ -115,3 +115,23 @@ def _refined_uniform():
 
     h2, H2, tv, levels = refine(h, H, evaluate, threshold=0.5, min_size=MIN_SIZE)
     return h, h2, H2, tv, levels, calls, ctx
+
+
+def test_triangles_split_in_four_sharing_midpoints():
+    # Two triangles sharing an edge, one shadowed corner: every split triangle's children
+    # share the midpoints with their neighbours, and areas add up.
+    from daskrad.mesh.refine import split_elements
+    from daskrad.scene import scene_from_arrays
+
+    v = np.array([[0.0, 0, 0], [0, 0, 1], [1, 0, 0], [1, 0, 1]])
+    scene = scene_from_arrays(v, np.array([[0, 1, 2, -1], [2, 1, 3, -1]]), [0, 0],
+                              diffuse=[[0.5] * 3], emission=[[0, 0, 0]],
+                              directional_lights=(np.array([[0.0, -1, 0]]), [[1.0] * 3]))
+    h = build_hierarchy(scene, 2.0, 2.0)
+    h2, keys, verts = split_elements(h, np.ones(h.n_elements, bool), np.zeros(0, np.int64),
+                                     np.zeros(0, np.int64))
+    assert h2.n_elements == 4 * h.n_elements
+    assert np.all(h2.elem_verts[:, 3] == -1)
+    np.testing.assert_allclose(np.bincount(h2.elem_patch, weights=h2.elem_area),
+                               h.patch_area, rtol=1e-12)
+    assert np.all(h2.elem_area > 0)  # winding kept: positive projected areas

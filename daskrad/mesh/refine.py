@@ -136,7 +136,9 @@ def split_elements(h: Hierarchy, split: np.ndarray, mid_keys: np.ndarray,
     all_vert = np.concatenate([mid_vertex, new_ids])
     order = np.argsort(all_keys, kind="stable")
     all_keys, all_vert = all_keys[order], all_vert[order]
-    m = np.where(valid, all_vert[np.searchsorted(all_keys, keys)], -1)  # (S, 4) midpoints
+    # (S, 4) midpoints; a triangle's unused fourth edge has no entry (clipped, then masked)
+    at = np.minimum(np.searchsorted(all_keys, keys), len(all_keys) - 1)
+    m = np.where(valid, all_vert[at], -1)
     # quad centres: the mean of the four corners (in the plane of a planar quad)
     qids = np.flatnonzero(quad)
     centre = h.vertices[sev[qids]].mean(axis=1)
