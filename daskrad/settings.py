@@ -31,7 +31,7 @@ class Settings:
     two_pass: bool = True               # area lights gathered at vertices, not shot
     area_samples: int = 4               # shadow rays per area light: area_samples²
     subdivide: float = 0.5              # relative spread of ρH splitting an element; 0: off
-    min_element_size: float | None = None  # None: element size / 8
+    min_element_size: float | None = None  # None: element size / 4 (two levels)
     rdiff: float = 0.1                  # eq. 9 threshold, relative to the mean vertex radiance
     mirror_depth: int = 4               # mirror bounces per pixel ray
 
