@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 import math
 import platform
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -263,6 +264,7 @@ def whole_solution():
         progress=False)
     images.append(("reference R=1024", exr.with_suffix(".png")))
     side_by_side(images, RESULTS / "methods_figure2.png")
+    shutil.rmtree(tmp, ignore_errors=True)
     out["figure"] = "benchmarks/results/methods_figure2.png"
     return out
 
