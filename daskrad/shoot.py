@@ -11,8 +11,9 @@ the error that dominates flat radiosity along junctions (wall meets ceiling). Fo
 closer than ``NEAR_FIELD · r`` the shooter is not point-sampled: by reciprocity
 ``F_ij = F_ji · A_j / A_i``, and ``F_ji`` — from the receiver's centroid to the *whole* shooter
 polygon — is Lambert's contour integral, exact in the shooter's extent. Occlusion is taken from
-the hemisphere pass at the centroid (the fraction ``won / covered`` of the receiver's pixels
-that are visible). The near receivers' factors are then scaled so that together they take
+the method's own row at the centroid: the visible fraction of receiver ``j`` is its factor over
+Lambert's unoccluded one from the same point (``won / covered`` for the default hemisphere
+method), so one form-factor pass serves both. The near receivers' factors are then scaled so that together they take
 exactly the share of energy the hemisphere pass gave them: the row sum stays that of the
 hemisphere (≤ 1, and = 1 in a closed scene), so a shot never sends more energy than the shooter
 holds, and only the distribution among near receivers changes.
@@ -84,11 +85,12 @@ def shoot_row(ctx: ShootContext, p: int) -> np.ndarray:
     near &= row > 0
     if not near.any():
         return row
-    won, covered, _ = formfactor.hemisphere_counts(
-        point, normal, ctx.vertices, ctx.elem_verts, resolution=ctx.resolution,
-        edge_angle=ctx.options.get("edge_angle", 1.0))
     ids = np.flatnonzero(near)
-    visible = np.where(covered[0, ids] > 0, won[0, ids] / np.maximum(covered[0, ids], 1), 1.0)
+    # the method's own visibility of each near receiver: its factor over the unoccluded one
+    # from the same point (won/covered for the default hemisphere method, exactly)
+    unoccluded = formfactor.analytic_rows(point, normal, ctx.vertices, ctx.elem_verts[ids])[0]
+    visible = np.clip(row[ids] / np.where(unoccluded > 0, unoccluded, np.inf), 0.0, 1.0)
+    visible[unoccluded <= 0] = 1.0
     # F_ji from each near receiver's centroid to the whole shooter polygon (Lambert, exact in
     # the shooter's extent), then F_ij = F_ji · A_j / A_i by reciprocity
     F_ji = formfactor.analytic_rows(ctx.elem_centroid[ids], ctx.elem_normal[ids],
