@@ -293,8 +293,18 @@ def settings_from_args(args) -> Settings:
 def run_cli(args) -> None:
     settings = settings_from_args(args)
     output = args.output or str(Path(args.scene).with_suffix(".exr").name)
-    run(args.scene, output, settings, progress=not args.quiet, config=args.config,
-        resume=args.resume)
+    try:
+        run(args.scene, output, settings, progress=not args.quiet, config=args.config,
+            resume=args.resume)
+    except SystemError as err:
+        # Ctrl-C inside a numba kernel surfaces as "SystemError: ... returned a result with
+        # an exception set" chained to the KeyboardInterrupt: report it as the interrupt
+        cause = err
+        while cause is not None and not isinstance(cause, KeyboardInterrupt):
+            cause = cause.__cause__ or cause.__context__
+        if cause is None:
+            raise
+        raise KeyboardInterrupt from None
     print(f"wrote {output}, {Path(output).with_suffix('.png')}, "
           f"{Path(output).with_suffix('.json')}")
 

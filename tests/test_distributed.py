@@ -1,0 +1,216 @@
+"""Dask and Zarr (issue 4): the same bits for any number of workers, a real loopback cluster
+started by ``cluster/local.sh``, a worker killed mid-run, the store and its worker cache.
+
+Every comparison is exact (``array_equal`` on float arrays): form factors depend only on
+geometry, the client applies batches in shooter order, and which shooters form a batch depends
+only on the solution state, so no tolerance is justified — one differing bit is a bug.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from daskrad.distributed import worker
+from daskrad.distributed.dask_executor import DaskExecutor
+from daskrad.distributed.store import Store
+from daskrad.io import read_exr
+from daskrad.run import run, solve_scene
+from daskrad.scene import load_scene
+from daskrad.settings import Settings
+
+REPO = Path(__file__).resolve().parent.parent
+CORNELL = REPO / "scenes" / "cornell_box.obj"
+
+# Small images and a bounded number of shots keep each run to about a second in-process; the
+# ≥5,000-element case uses the Cornell box with 25-unit elements (5,839 before subdivision).
+CASES = {
+    "cornell": Settings(max_iterations=160, width=64, height=64, dashboard="127.0.0.1:0"),
+    "5k": Settings(element_size=25.0, max_iterations=64, width=64, height=64,
+                   dashboard="127.0.0.1:0"),
+}
+
+
+def store_arrays(path: Path) -> dict[str, np.ndarray]:
+    """Every array of a solution store except the worker task contexts (a cache of what the
+    client holds) and the older checkpoint slot; the active slot is named ``checkpoint/last``."""
+    import zarr
+
+    root = zarr.open_group(str(path), mode="r")
+    active = str(root.attrs["checkpoint"])
+    out = {}
+
+    def walk(group, prefix):
+        for name, member in group.members():
+            full = prefix + name
+            if full == "context" or (prefix == "checkpoint/" and name != active):
+                continue
+            if isinstance(member, zarr.Array):
+                out[full.replace(f"checkpoint/{active}/", "checkpoint/last/")] = member[...]
+            else:
+                walk(member, full + "/")
+
+    walk(root, "")
+    return out
+
+
+def assert_same_run(a: Path, b: Path) -> None:
+    """Bit-identical EXR and store arrays of two runs written to ``a`` and ``b`` (.exr)."""
+    np.testing.assert_array_equal(read_exr(a), read_exr(b))
+    sa, sb = store_arrays(a.with_suffix(".zarr")), store_arrays(b.with_suffix(".zarr"))
+    assert sorted(sa) == sorted(sb)
+    for name in sa:
+        assert sa[name].dtype == sb[name].dtype, name
+        np.testing.assert_array_equal(sa[name], sb[name], err_msg=name)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> dict[str, Path]:
+    """In-process (``--workers 0``) runs of every case: the bits everything must reproduce."""
+    out = {}
+    for name, settings in CASES.items():
+        path = tmp_path_factory.mktemp("ref") / f"{name}.exr"
+        run(CORNELL, path, settings, progress=False)
+        out[name] = path
+    return out
+
+
+def test_reference_cases_are_what_the_issue_asks(reference):
+    counts = {name: json.loads(p.with_suffix(".json").read_text())["counts"]["elements"]
+              for name, p in reference.items()}
+    assert counts["5k"] >= 5000
+    arrays = store_arrays(reference["cornell"].with_suffix(".zarr"))
+    assert arrays["elements/radiosity"].dtype == np.float32
+    assert arrays["checkpoint/last/radiosity"].dtype == np.float64
+    # the public f4 array is the exact state rounded once
+    np.testing.assert_array_equal(arrays["elements/radiosity"],
+                                  arrays["checkpoint/last/radiosity"].astype(np.float32))
+
+
+@pytest.mark.parametrize("case, workers", [("cornell", 1), ("cornell", 2), ("5k", 2),
+                                           ("5k", 4)])
+def test_same_bits_for_any_number_of_workers(reference, tmp_path, cluster_client, case,
+                                             workers):
+    out = tmp_path / f"{case}-{workers}.exr"
+    settings = CASES[case].replace(workers=workers)
+    if workers == 2:  # the session's 2-worker cluster; 1 and 4 start their own LocalCluster
+        store = Store(out.with_suffix(".zarr"), settings)
+        executor = DaskExecutor(cluster_client, store)
+        report = run(CORNELL, out, settings, progress=False, executor=executor)
+        assert executor.stats["tasks"] > 0
+    else:
+        report = run(CORNELL, out, settings, progress=False)
+    assert report["workers"] == workers
+    assert_same_run(reference[case], out)
+
+
+def test_worker_cache_loads_each_context_once_per_process(cluster_client, tmp_path):
+    settings = CASES["cornell"]
+    before = sum(s["loads"] for s in cluster_client.run(worker.state).values())
+    store = Store(tmp_path / "c.zarr", settings)
+    executor = DaskExecutor(cluster_client, store)
+    scene = load_scene(CORNELL)
+    solve_scene(scene, settings, executor, store=store)
+    after = cluster_client.run(worker.state)
+    loads = sum(s["loads"] for s in after.values()) - before
+    # each of 2 workers reads each context (direct per refinement level, shoot) at most once:
+    # far fewer loads than tasks (a cache miss per task would make them equal)
+    assert 0 < loads < executor.stats["tasks"] / 2
+    assert all(s["cached"] <= worker.CACHE_SIZE for s in after.values())
+
+
+def test_worker_killed_mid_run_is_replaced_and_bits_are_the_same(reference, cluster_client,
+                                                                 tmp_path):
+    settings = CASES["cornell"]
+    killed = []
+
+    def kill_a_worker(sol):
+        if len(sol.history) == 3 and not killed:
+            pids = cluster_client.run(os.getpid)
+            victim = sorted(pids)[0]
+            os.kill(pids[victim], signal.SIGKILL)
+            killed.append(victim)
+
+    store = Store(tmp_path / "k.zarr", settings)
+    executor = DaskExecutor(cluster_client, store)
+    scene = load_scene(CORNELL)
+    try:
+        _, _, sol, _ = solve_scene(scene, settings, executor, on_batch=kill_a_worker,
+                                   store=store)
+    finally:
+        cluster_client.wait_for_workers(2, timeout=60)  # the nanny restarts it
+    assert killed
+    expected = store_arrays(reference["cornell"].with_suffix(".zarr"))
+    np.testing.assert_array_equal(sol.radiosity, expected["checkpoint/last/radiosity"])
+    np.testing.assert_array_equal(sol.unshot, expected["checkpoint/last/unshot"])
+
+
+def _wait_for(predicate, timeout: float, what: str):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.1)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def test_loopback_cluster_script_and_scheduler_option(reference, tmp_path):
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}"
+           f"{os.environ.get('PATH', '')}"}
+    cluster_dir = tmp_path / "cluster"
+    proc = subprocess.Popen(["bash", str(REPO / "cluster" / "local.sh"), str(cluster_dir), "2"],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            start_new_session=True)
+    try:
+        sched = cluster_dir / "scheduler.json"
+        _wait_for(lambda: sched.is_file() and sched.stat().st_size > 0, 60, "the scheduler")
+        address = json.loads(sched.read_text())["address"]
+        assert address.startswith("tcp://127.0.0.1:")
+        settings = CASES["cornell"]
+        args = ["--max-iterations", str(settings.max_iterations), "--width", "64",
+                "--height", "64", "-q", "--scheduler", address]
+
+        # a relative output cannot be found by workers elsewhere: one clear line, exit 2
+        bad = subprocess.run([sys.executable, "-m", "daskrad", "run", str(CORNELL), "-o",
+                              "relative.exr", *args], cwd=tmp_path, env=env,
+                             capture_output=True, text=True, timeout=120)
+        assert bad.returncode == 2
+        assert "shared file system" in bad.stderr and "Traceback" not in bad.stderr
+
+        out = tmp_path / "sched.exr"
+        done = subprocess.run([sys.executable, "-m", "daskrad", "run", str(CORNELL), "-o",
+                               str(out), *args], env=env, capture_output=True, text=True,
+                              timeout=240)
+        assert done.returncode == 0, done.stderr
+        assert_same_run(reference["cornell"], out)
+
+        # the dashboard link is printed, and /daskrad serves the progress of the run
+        link = re.search(r"dashboard (http://127\.0\.0\.1:\d+)/status", done.stderr)
+        assert link, done.stderr
+        with urllib.request.urlopen(link.group(1) + "/daskrad/json", timeout=10) as r:
+            meta = json.load(r)
+        assert meta["progress"]["iteration"] == settings.max_iterations
+        assert meta["progress"]["workers"] == 2
+        assert base64.b64decode(meta["preview"]).startswith(b"\x89PNG")
+        with urllib.request.urlopen(link.group(1) + "/daskrad", timeout=10) as r:
+            page = r.read().decode()
+        assert "relative unshot RMS" in page and "<svg" in page
+    finally:
+        os.killpg(proc.pid, signal.SIGTERM)
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()

@@ -1,0 +1,146 @@
+"""Nothing lost (issue 4, item 7): a client killed or interrupted mid-run leaves its last
+checkpoint in ``OUT.zarr``, and ``--resume`` finishes to the same bits as a run never stopped.
+
+Comparisons are exact: the checkpoint holds the solver state in float64 together with the
+batches already chosen (``Solution.queued``), so a resumed run applies exactly the shots the
+uninterrupted one applied.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from daskrad.distributed.dask_executor import DaskExecutor
+from daskrad.distributed.store import Store
+from daskrad.errors import OptionError
+from daskrad.io import read_exr
+from daskrad.run import run
+from daskrad.settings import Settings
+from tests.test_distributed import CORNELL, assert_same_run
+
+# Long enough (60 batches of 8) that the client is still shooting when its first checkpoint
+# (after batch 8) appears, short enough to keep each run to a few seconds.
+SETTINGS = Settings(max_iterations=480, width=64, height=64)
+ARGS = ["--max-iterations", "480", "--width", "64", "--height", "64", "-q"]
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("full") / "full.exr"
+    run(CORNELL, path, SETTINGS, progress=False)
+    return path
+
+
+def _root_attrs(store: Path) -> dict:
+    try:  # zarr replaces zarr.json atomically: a read sees the old or the new file
+        return json.loads((store / "zarr.json").read_text()).get("attributes", {})
+    except (FileNotFoundError, json.JSONDecodeError):
+        return {}
+
+
+def _start_and_stop_after_first_checkpoint(out: Path, sig: int) -> subprocess.CompletedProcess:
+    proc = subprocess.Popen([sys.executable, "-m", "daskrad", "run", str(CORNELL), "-o",
+                             str(out), "--workers", "0", *ARGS],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    store = out.with_suffix(".zarr")
+    end = time.monotonic() + 120
+    while "checkpoint" not in _root_attrs(store):
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < end, "no checkpoint appeared"
+        time.sleep(0.02)
+    proc.send_signal(sig)
+    stdout, stderr = proc.communicate(timeout=60)
+    return subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr)
+
+
+def test_sigkill_then_resume_on_a_cluster_gives_the_same_bits(uninterrupted, tmp_path,
+                                                              cluster_client):
+    out = tmp_path / "killed.exr"
+    killed = _start_and_stop_after_first_checkpoint(out, signal.SIGKILL)
+    assert killed.returncode == -signal.SIGKILL
+    attrs = _root_attrs(out.with_suffix(".zarr"))
+    assert 0 < attrs["iteration"] < SETTINGS.max_iterations and "complete" not in attrs
+    assert not out.exists()
+    # resume with 2 workers where the killed run had none: the bits do not depend on it
+    store = Store(out.with_suffix(".zarr"), SETTINGS.replace(workers=2), resume=True)
+    report = run(CORNELL, out, SETTINGS.replace(workers=2), progress=False, resume=True,
+                 executor=DaskExecutor(cluster_client, store))
+    assert report["iterations"] == SETTINGS.max_iterations
+    # the history continues the killed run's (same batches, same RMS values)
+    assert report["unshot_rms_history"][0]["iteration"] == 8
+    assert_same_run(uninterrupted, out)
+
+
+def test_ctrl_c_then_resume_from_the_command_line(uninterrupted, tmp_path):
+    out = tmp_path / "interrupted.exr"
+    stopped = _start_and_stop_after_first_checkpoint(out, signal.SIGINT)
+    assert stopped.returncode == 130
+    assert "--resume" in stopped.stderr and "Traceback" not in stopped.stderr
+    resumed = subprocess.run([sys.executable, "-m", "daskrad", "run", str(CORNELL), "-o",
+                              str(out), "--workers", "0", "--resume", *ARGS],
+                             capture_output=True, text=True, timeout=240)
+    assert resumed.returncode == 0, resumed.stderr
+    assert_same_run(uninterrupted, out)
+
+
+def test_resume_of_a_finished_run_shoots_nothing_more(uninterrupted, tmp_path):
+    import shutil
+
+    out = tmp_path / "again.exr"
+    shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
+    report = run(CORNELL, out, SETTINGS, progress=False, resume=True)
+    assert report["iterations"] == SETTINGS.max_iterations
+    np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
+
+
+def test_resume_refuses_other_settings_and_a_missing_store(uninterrupted, tmp_path):
+    import shutil
+
+    out = tmp_path / "other.exr"
+    shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
+    with pytest.raises(OptionError, match="other settings.*max_iterations"):
+        run(CORNELL, out, SETTINGS.replace(max_iterations=100), progress=False, resume=True)
+    with pytest.raises(OptionError, match="no solution store"):
+        run(CORNELL, tmp_path / "none.exr", SETTINGS, progress=False, resume=True)
+
+
+def test_a_torn_checkpoint_leaves_the_previous_one(tmp_path):
+    # A client killed while writing a slot has not yet named it in the root attributes:
+    # reading gives the previous checkpoint, bit for bit.
+    from daskrad.mesh import build_hierarchy
+    from daskrad.scene import box_scene
+    from daskrad.solve import Solution
+
+    h = build_hierarchy(box_scene(emission_per_face=0.1), 0.5, 0.25)
+    rng = np.random.default_rng(7)
+    E, P = h.n_elements, h.n_patches
+
+    def state(i):
+        return Solution(radiosity=rng.random((E, 3)), direct=rng.random((E, 3)),
+                        unshot=rng.random((P, 3)), initial_rms=0.1 * i, iteration=8 * i,
+                        history=[(8 * i, 0.5, 1.0)], seconds=float(i), queued=[[1, 2]])
+
+    store = Store(tmp_path / "t.zarr", Settings()).open()
+    store.begin(h, np.full((E, 3), 0.5), state(0))
+    store.checkpoint(state(1))
+    last = state(2)
+    store.checkpoint(last)
+    slot = 1 - store._slot  # the older slot, the one the next checkpoint overwrites
+    torn = state(3)
+    g = store.group[f"checkpoint/{slot}"]
+    g["radiosity"][...] = torn.radiosity   # the slot's arrays change, its name is never set
+    g["unshot"][...] = torn.unshot
+    back = Store(tmp_path / "t.zarr", Settings(), resume=True).open().load_checkpoint(h)
+    np.testing.assert_array_equal(back.radiosity, last.radiosity)
+    np.testing.assert_array_equal(back.unshot, last.unshot)
+    np.testing.assert_array_equal(back.direct, last.direct)
+    assert (back.iteration, back.queued, back.history) == (16, [[1, 2]], [(16, 0.5, 1.0)])
+    assert back.initial_rms == last.initial_rms and back.seconds == last.seconds
