@@ -43,6 +43,27 @@ def scale_of(vertices: np.ndarray, corners: np.ndarray) -> float:
     return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
 
 
+def duplicated_polygons(vertices: np.ndarray, polygons: np.ndarray) -> np.ndarray:
+    """``(Q,) bool``: polygons whose corners repeat an earlier polygon's, by position (so
+    unwelded copies count), in the same cyclic order from any starting corner.
+
+    The opposite winding is a different polygon (the other side of a two-sided surface).
+    """
+    # one id per distinct position (+ 0.0 turns -0.0 into 0.0, which unique would tell apart)
+    _, vid = np.unique(vertices + 0.0, axis=0, return_inverse=True)
+    vid = vid.reshape(-1)
+    ids = np.where(polygons >= 0, vid[np.maximum(polygons, 0)], -1).astype(np.int64)
+    n = np.where(polygons[:, 3] >= 0, 4, 3)
+    # rotate each polygon to start at its smallest id, keeping the cyclic order
+    start = np.argmin(np.where(ids >= 0, ids, np.iinfo(np.int64).max), axis=1)
+    canon = np.take_along_axis(ids, (start[:, None] + np.arange(4)) % n[:, None], axis=1)
+    canon[n == 3, 3] = -1
+    _, first = np.unique(canon, axis=0, return_index=True)
+    repeated = np.ones(len(polygons), bool)
+    repeated[first] = False
+    return repeated
+
+
 def _rgb_table(values, m: int, name: str, path: str) -> np.ndarray:
     try:
         a = np.array(values, dtype=np.float64)
@@ -124,7 +145,11 @@ def scene_from_arrays(
     material_names : sequence of M str, optional
 
     Zero-area polygons (below ``DEGENERATE_AREA * diag²``) are dropped with a warning and
-    counted in ``Scene.dropped_degenerate``. A scene with no emitting polygon and no light with
+    counted in ``Scene.dropped_degenerate``. A polygon that repeats an earlier one (the same
+    corner positions in the same cyclic order) is dropped with a warning: two coincident
+    copies would both shoot their emission and split what they receive (issue 7).
+    Back-to-back copies (the opposite winding, a two-sided surface) are kept.
+    A scene with no emitting polygon and no light with
     positive power is refused.
     """
     path = str(path)
@@ -205,6 +230,11 @@ def scene_from_arrays(
     if dropped:
         warnings.warn(f"{path}: dropped {dropped} zero-area faces", stacklevel=2)
         poly, pm = poly[~degenerate], pm[~degenerate]
+    repeated = duplicated_polygons(v, poly)
+    if repeated.any():
+        warnings.warn(f"{path}: dropped {int(repeated.sum())} duplicated faces (same corners "
+                      "and winding as an earlier face; the first is kept)", stacklevel=2)
+        poly, pm = poly[~repeated], pm[~repeated]
 
     emits = (ke[pm] > 0).any()
     lit = (points.intensity > 0).any() or (directional.irradiance > 0).any()

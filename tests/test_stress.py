@@ -1,0 +1,262 @@
+"""Numerical stability under stress (issue 7): degenerate geometry, units, near field,
+reflectance near 1, light levels, random scenes, long runs.
+
+The cases live in tests/stress_cases.py (shared with benchmarks/bench_stress.py, the stress
+report). Each assertion compares a measured figure against an exact answer: the furnace
+``B = E/(1 − ρ)``, the bound ``max(E)/(1 − ρ_max)``, the closed-scene energy ledger (exact to
+round-off after every shot), or bit/ulp identity of images that must not depend on units or
+light level. ``make stress`` runs all of it; ``make test`` skips the ``slow`` cases.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from daskrad import solve
+from daskrad.run import solve_scene
+from daskrad.scene import box_scene, scene_from_arrays
+from tests import stress_cases as sc
+
+
+def _assert_ok(results):
+    bad = [str(r) for r in results if not r.ok]
+    assert not bad, "\n".join(bad)
+
+
+def _safety_ok(results, furnace: bool):
+    """In a furnace the exact answer *is* the bound ``E/(1 − ρ)``, so the bound may be exceeded
+    by the furnace's own 1 % discretization error; elsewhere by round-off only."""
+    if furnace:
+        for r in results:
+            if r.quantity.startswith("max B"):
+                r.limit = 0.01
+    _assert_ok(results)
+
+
+# --- 1. degenerate geometry -----------------------------------------------------------------
+
+DEGENERATE = sc.degenerate_scenes()
+#: Cases that are wrong today, with the measured failure (see the report of issue 7).
+DEGENERATE_XFAIL = {
+    "coplanar overlapping faces": "a face lying in another's plane z-fights: the hidden "
+    "copy still shoots its emission and receives nothing; measured B = E (furnace error 50 %) "
+    "under the rug, 6 % above the bound E/(1-rho) elsewhere; fix: refuse (or cut) coplanar "
+    "overlaps in daskrad/scene/validate.py",
+    "non-manifold edge (fin)": "point-sampled shooters along the fin's junction with the floor "
+    "break reciprocity: furnace error 1.4 %, 1.1 % above the bound E/(1-rho) (limit 1 %); "
+    "fix: the near-field treatment in daskrad/shoot.py for receivers sharing an edge",
+}
+
+
+@pytest.mark.parametrize("case", [c for c in DEGENERATE if c != "flipped normal"])
+def test_degenerate_geometry_keeps_the_invariants(case):
+    # finite, non-negative radiosity; unshot power never grows; the energy ledger holds to
+    # 1e-3 (measured: round-off, < 1e-14); B within the bound (furnace: within its 1 %)
+    results = sc.safety(case, DEGENERATE[case])
+    if case in DEGENERATE_XFAIL:  # the bound is what fails there: see the furnace test
+        results = [r for r in results if not r.quantity.startswith("max B")]
+    _safety_ok(results, furnace=True)
+
+
+@pytest.mark.parametrize("case", [
+    pytest.param(c, marks=pytest.mark.xfail(strict=True, reason=DEGENERATE_XFAIL[c]))
+    if c in DEGENERATE_XFAIL else c
+    for c in DEGENERATE if c != "flipped normal"])
+def test_degenerate_geometry_in_a_furnace_gives_E_over_one_minus_rho(case):
+    # every face (the degenerate ones too) emits E = 1 and reflects 0.5 in a closed box:
+    # B = 2 everywhere whatever the shape; 1 % as for the plain furnace (test_solve.py)
+    r = sc.furnace_error(case, DEGENERATE[case])
+    assert r.ok, r
+
+
+def test_zero_area_faces_are_dropped_with_a_warning():
+    with pytest.warns(UserWarning, match="dropped 2 zero-area faces"):
+        scene = sc.box_with([[0.2, 0.5, 0.2], [0.4, 0.5, 0.2], [0.6, 0.5, 0.2],
+                             [0.3, 0.6, 0.3]], [[0, 1, 2, -1], [3, 3, 0, -1]])
+    assert scene.dropped_degenerate == 2
+    assert len(scene.polygons) == 24
+
+
+def test_duplicated_faces_are_dropped_with_a_warning_but_back_to_back_faces_are_kept():
+    with pytest.warns(UserWarning, match="dropped 1 duplicated faces"):
+        scene = sc.box_with(duplicate=3)
+    assert len(scene.polygons) == 24
+    # the same corners from another starting corner, and unwelded copies of the vertices,
+    # are the same face; the reverse winding is the other side of a two-sided surface
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0.0]])
+    polys = [[0, 1, 2, 3], [2, 3, 0, 1], [0, 4, 5, 3], [3, 2, 1, 0]]
+    with pytest.warns(UserWarning, match="dropped 2 duplicated faces"):
+        s = scene_from_arrays(v, polys, [0, 0, 0, 0], [[0.5] * 3], [[1.0] * 3])
+    np.testing.assert_array_equal(s.polygons, [[0, 1, 2, 3], [3, 2, 1, 0]])
+
+
+def test_flipped_normal_is_a_hole_one_sided_and_creates_no_energy():
+    # Surfaces are one-sided (DESIGN §6): a face wound the wrong way is seen from its back,
+    # so from inside the box it is a hole. It must receive nothing (B = E on it), and the
+    # light that leaves through it is lost, never created: the open-scene ledger.
+    scene = DEGENERATE["flipped normal"]
+    results = sc.safety("flipped normal", scene)
+    h, reflectance, sol, _ = sc.solve_recorded(scene)
+    flipped = h.elem_polygon == 0
+    np.testing.assert_allclose(sol.radiosity[flipped], 1.0, rtol=1e-12)
+    assert sc.ledger_error(scene, h, reflectance, sol, closed=False) <= 1e-12
+    assert sc.ledger_error(scene, h, reflectance, sol, closed=True) > 0.05  # it does leak
+    _safety_ok([r for r in results if not r.quantity.startswith("energy")], furnace=True)
+
+
+# --- 2. units and placement -----------------------------------------------------------------
+
+UNITS_XFAIL = (
+    "hemisphere_visibility (kernels/hemisphere.py) decides whether an element covering no "
+    "pixel centre is visible at the ONE pixel nearest its direction, floor((x+1)·R/2): in the "
+    "coarse Cornell box patch 33 (green wall, z = 466) sees floor element 59 whose vertex "
+    "mean is also at z = 466, exactly on a pixel boundary, and round-off picks the pixel, so "
+    "F_ij jumps between Lambert's 0.0016 and 0 with the scale; measured image difference "
+    "1.2e-3 (x1e-3) and 2.6e-3 (x1e3) per pixel, limit 1e-4")
+
+
+@pytest.fixture(scope="module")
+def cornell_reference(tmp_path_factory):
+    return sc.render_cornell(tmp_path_factory.mktemp("units") / "ref")
+
+
+@pytest.mark.parametrize("scale, offset", [
+    pytest.param(1e-3, 0.0, marks=pytest.mark.xfail(strict=True, reason=UNITS_XFAIL)),
+    pytest.param(1e3, 0.0, marks=pytest.mark.xfail(strict=True, reason=UNITS_XFAIL)),
+    (1e6, 0.0),
+    (1.0, 1e6),
+])
+def test_same_image_whatever_the_units_and_placement(cornell_reference, tmp_path, scale,
+                                                     offset):
+    # Radiance does not depend on units: with sizes given in the scene's units and the same
+    # number of shots, only round-off may differ (1e-4 relative per pixel, issue 7)
+    r = sc.units_case(tmp_path, cornell_reference, scale, offset)
+    assert r.ok, r
+
+
+# --- 3. near field --------------------------------------------------------------------------
+
+@pytest.mark.parametrize("gap", [1e-6, 0.0])
+def test_near_field_shots_conserve_energy(gap):
+    # receivers sharing an edge or a corner with the shooter, a plate 1e-6 of the scene above
+    # the floor, a 1e-3 square 1e-6 in front of it: every row sums to <= 1 (+ round-off),
+    # no element above max(E)/(1 - rho_max) (this scene is no furnace: round-off only),
+    # ledger 1e-3
+    _safety_ok(sc.near_field_cases(gap), furnace=False)
+
+
+# --- 4. reflectance near 1 ------------------------------------------------------------------
+
+@pytest.mark.parametrize("rho, budget", [(0.9, 3000), (0.99, 30000), (0.999, 60000)])
+def test_furnace_with_reflectance_near_one(rho, budget):
+    # one patch per face: ~ 6 · log(1e-3)/log(rho) shots reach tolerance 1e-3, which leaves
+    # an error of ~ 1e-3 of E/(1 - rho) (the remaining unshot light), well inside 1 %
+    sol, err = sc.furnace_rho(rho, budget)
+    assert sol.converged
+    assert np.isfinite(sol.radiosity).all()
+    assert err <= 0.01, err
+
+
+def test_furnace_budget_ended_is_reported(tmp_path, capsys):
+    # rho = 0.999 needs ~ 40,000 shots; with 600 the run must say so on the terminal and in
+    # the report, and the image (ambient term added) is still E/(1 - rho) within 1 %: in a
+    # furnace the unshot light is uniform, so the ambient term is exact
+    rho = 0.999
+    report, image = sc.furnace_run(tmp_path, rho, 600)
+    err = capsys.readouterr().err
+    assert "not converged after 600 shots" in err
+    assert report["converged"] is False and report["iterations"] == 600
+    saved = json.loads((tmp_path / "furnace.json").read_text())
+    assert saved["converged"] is False
+    expected = 1.0 / (1.0 - rho)  # radiance: Ke / (1 - rho) with Ke = 1
+    assert np.isfinite(image).all()
+    np.testing.assert_allclose(image, expected, rtol=0.01)
+
+
+# --- 5. light levels ------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def light_reference(tmp_path_factory):
+    return sc.render_cornell(tmp_path_factory.mktemp("light") / "ref", point_light=1.5e5)
+
+
+@pytest.mark.parametrize("k", [1e-6, 1e-3, 1e3, 1e9])
+def test_image_scales_linearly_with_light_level(light_reference, tmp_path, k):
+    # emission and the point light both scaled by k: every step is linear in the light
+    # (the stopping rule is relative), so image/k equals the reference up to float64
+    # round-off and the float32 rounding of the EXR: 2 ulp of float32 = 2.4e-7 relative
+    image = sc.render_cornell(tmp_path, ke_scale=k, point_light=1.5e5 * k)
+    assert np.isfinite(image).all()
+    mask = light_reference > 0
+    rel = np.abs(image[mask] / k - light_reference[mask]) / light_reference[mask]
+    assert rel.max() <= 2.4e-7, rel.max()
+    assert (image[~mask] == 0).all()
+    import zarr
+
+    store = zarr.open_group(str(tmp_path / "cb.zarr"), mode="r")
+    for name in ("elements/radiosity", "vertex_radiosity", "patches/unshot"):
+        a = np.asarray(store[name][...])
+        assert np.isfinite(a).all(), name
+
+
+# --- 6. random scenes -----------------------------------------------------------------------
+
+def _check_random(scene, closed: bool):
+    s = sc.box_settings_for(scene)
+    h, reflectance, sol, powers = sc.solve_recorded(scene, s)
+    assert np.isfinite(sol.radiosity).all() and np.isfinite(sol.unshot).all()
+    assert (sol.radiosity >= 0).all() and (sol.unshot >= 0).all()
+    # unshot power never grows: a shot removes ΔB_i A_i and gives back at most rho_max of it
+    assert (np.diff(powers, axis=0) <= 1e-12 * powers[0].max()).all()
+    assert sc.ledger_error(scene, h, reflectance, sol, closed=closed) <= 1e-3
+    return h, sol
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1))
+def test_random_closed_boxes(seed):
+    _check_random(sc.random_box(np.random.default_rng(seed)), closed=True)
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1))
+def test_random_triangle_soups(seed):
+    _check_random(sc.random_soup(np.random.default_rng(seed)), closed=False)
+
+
+def test_random_scene_same_bits_for_0_and_2_workers(rng, cluster_client):
+    from daskrad.distributed.dask_executor import DaskExecutor
+
+    for scene in (sc.random_box(rng), sc.random_soup(rng)):
+        s = sc.box_settings_for(scene)
+        _, _, a, _ = solve_scene(scene, s)
+        _, _, b, _ = solve_scene(scene, s, DaskExecutor(cluster_client))
+        np.testing.assert_array_equal(a.radiosity, b.radiosity)
+        np.testing.assert_array_equal(a.unshot, b.unshot)
+
+
+# --- 7. long runs ---------------------------------------------------------------------------
+
+def test_accumulation_is_float64_and_drifts_below_1e5():
+    # the solver's state is float64; replaying the same shots in extended precision, its
+    # drift stays far below 1e-5 (measured ~1e-15 over 2,000 shots)
+    scene = box_scene(emission_per_face=[0, 0, 0, sc.KE, 0, 0])
+    sol = solve.initial_solution(sc.build_hierarchy(scene, 1.0, 1.0),
+                                 np.zeros((6, 3)))
+    assert sol.radiosity.dtype == np.float64 and sol.unshot.dtype == np.float64
+    drift = sc.accumulation_drift(2000, 8)
+    assert drift["float64"] <= 1e-5, drift
+
+
+@pytest.mark.slow
+def test_long_run_drift_10000_shots_50000_elements():
+    # issue 7: 10,000 shots on a 50,000-element scene; float64 holds 1e-5 (float32 is
+    # measured and reported by benchmarks/bench_stress.py)
+    drift = sc.accumulation_drift(10000, 92)
+    assert drift["elements"] >= 50000
+    assert drift["float64"] <= 1e-5, drift
