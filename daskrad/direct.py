@@ -89,6 +89,46 @@ class DirectContext:
                 self.emitter_normal, self.emitter_radiance, self.emitter_area)
 
 
+@dataclass(frozen=True)
+class Lights:
+    """The lights alone, what the per-pixel pass (:mod:`daskrad.render`) evaluates at a point.
+
+    Same arrays as :class:`DirectContext` (``point_position``, ... ``emitter_area``), plus
+    ``offset``, the absolute shadow-ray offset, and ``samples`` (``samples²`` stratified shadow
+    rays per area light and point). No grid and no vertices: the render context has its own
+    grid, and a tile task must not carry the mesh twice.
+    """
+
+    point_position: np.ndarray
+    point_intensity: np.ndarray
+    dir_direction: np.ndarray
+    dir_irradiance: np.ndarray
+    emitter_corners: np.ndarray
+    emitter_count: np.ndarray
+    emitter_normal: np.ndarray
+    emitter_radiance: np.ndarray
+    emitter_area: np.ndarray
+    offset: float
+    samples: int = AREA_SAMPLES
+
+    @property
+    def light_args(self) -> tuple:
+        """The light arrays in the order of :func:`daskrad.kernels.direct.irradiance_one`."""
+        return (self.point_position, self.point_intensity, self.dir_direction,
+                self.dir_irradiance, self.emitter_corners, self.emitter_count,
+                self.emitter_normal, self.emitter_radiance, self.emitter_area)
+
+    @property
+    def empty(self) -> bool:
+        return not (len(self.point_position) or len(self.dir_direction)
+                    or len(self.emitter_corners))
+
+
+def lights_of(ctx: DirectContext) -> Lights:
+    """The :class:`Lights` of a direct-light context (the same lights the vertices saw)."""
+    return Lights(*ctx.light_args, offset=float(ctx.offset), samples=int(ctx.samples))
+
+
 def vertex_normals(h: Hierarchy) -> np.ndarray:
     """``(V, 3) float64``: the normal of each vertex's polygon (0 for an unused vertex)."""
     out = np.zeros((len(h.vertices), 3))

@@ -20,7 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from daskrad import tolerances
+from daskrad.direct import Lights
 from daskrad.kernels.grid import Grid, closest_hit
+from daskrad.kernels.shade import direct_at_hits
 from daskrad.scene.types import Camera
 
 #: Tile side in pixels for the per-pixel pass (a tile is one task).
@@ -44,6 +47,27 @@ class RenderContext:
         With the final image ``width`` and ``height``.
     spp : int
         Samples per pixel (a ``⌈√spp⌉``-wide stratified grid, trimmed row-major to ``spp``).
+
+    The per-pixel pass (paper eq. 9) and the specular part, optional (``None``: plain Gouraud):
+
+    vertex_indirect : (V, 3) float64
+        The interpolated part of ``vertex_radiance`` on elements whose direct light is
+        recomputed per pixel (indirect light and the ambient term, radiance).
+    elem_perpixel : (E,) bool
+        Elements whose direct light is recomputed at every pixel (:func:`perpixel_elements`).
+    elem_reflectance, elem_emission : (E, 3) float64
+        ``ρ`` and ``Ke`` (emitted radiance) of each element.
+    elem_specular : (E, 3) float64, elem_shininess : (E,) float64
+        Phong ``Ks``, ``Ns`` (``Ks`` 0: no highlight). Mirrors get none: their reflected ray
+        sees the lights that have a size, and a point light has none.
+    elem_mirror : (E,) bool
+        ``illum 3``: the pixel adds ``Ks`` times the radiance along the mirrored ray.
+    lights : daskrad.direct.Lights
+        The lights the direct pass used, with the shadow-ray offset and area samples.
+    mirror_depth : int
+        Mirror bounces followed per pixel ray.
+    offset : float
+        Ray offset off a mirror (an absolute length, ``RAY_OFFSET · diag``).
     """
 
     grid: Grid
@@ -53,6 +77,27 @@ class RenderContext:
     vertex_radiance: np.ndarray
     camera: Camera
     spp: int
+    # ---- the per-pixel pass (eq. 9) and specular light; all optional: a context without them
+    # (the dashboard preview, a scene with no light but emitters that are shot) renders the
+    # plain Gouraud image, and these fields cost nothing.
+    vertex_indirect: np.ndarray | None = None
+    elem_perpixel: np.ndarray | None = None
+    elem_reflectance: np.ndarray | None = None
+    elem_emission: np.ndarray | None = None
+    elem_specular: np.ndarray | None = None
+    elem_shininess: np.ndarray | None = None
+    elem_mirror: np.ndarray | None = None
+    lights: Lights | None = None
+    mirror_depth: int = 0
+    offset: float = 0.0
+
+    @property
+    def extras(self) -> bool:
+        """Whether any pixel may need more than Gouraud interpolation (else: the plain path)."""
+        return bool(self.lights is not None and self.elem_perpixel is not None
+                    and (self.elem_perpixel.any() or self.elem_specular.any())
+                    or (self.elem_mirror is not None and self.mirror_depth > 0
+                        and self.elem_mirror.any()))
 
 
 def default_camera(bounds: np.ndarray, width: int = 256, height: int = 256,
@@ -111,22 +156,56 @@ def primary_rays(camera: Camera, rows: slice, cols: slice, spp: int
 def shade(ctx: RenderContext, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """Radiance ``(n, 3)`` seen along each ray: Gouraud interpolation of vertex radiance on the
     first surface hit, black for misses and for the back of a face."""
+    return _shade(ctx, origins, directions)[0]
+
+
+def _shade(ctx: RenderContext, origins: np.ndarray, directions: np.ndarray):
+    """:func:`shade` and the hits: ``(L, hit (n,) bool, t, tri, u, v, front (h,) bool)``."""
     n = len(origins)
     t, tri, u, v = closest_hit(ctx.grid, origins, directions, np.zeros(n), np.full(n, np.inf))
     out = np.zeros((n, 3))
     hit = tri >= 0
     if not hit.any():
-        return out
+        return out, hit, t, tri, u, v, np.zeros(0, bool)
     tri_h = tri[hit]
     elem = ctx.tri_element[tri_h]
     front = np.einsum("ij,ij->i", directions[hit], ctx.elem_normal[elem]) < 0.0
-    corners = ctx.tri_verts[tri_h]
-    uh, vh = u[hit][:, None], v[hit][:, None]
-    L = ((1.0 - uh - vh) * ctx.vertex_radiance[corners[:, 0]]
-         + uh * ctx.vertex_radiance[corners[:, 1]]
-         + vh * ctx.vertex_radiance[corners[:, 2]])
+    L = _gouraud(ctx.vertex_radiance, ctx.tri_verts[tri_h], u[hit], v[hit])
     out[hit] = np.where(front[:, None], L, 0.0)
-    return out
+    return out, hit, t, tri, u, v, front
+
+
+def _gouraud(values: np.ndarray, corners: np.ndarray, u: np.ndarray, v: np.ndarray):
+    uh, vh = u[:, None], v[:, None]
+    return ((1.0 - uh - vh) * values[corners[:, 0]] + uh * values[corners[:, 1]]
+            + vh * values[corners[:, 2]])
+
+
+def perpixel_elements(elem_verts: np.ndarray, vertex_direct: np.ndarray,
+                      vertex_total: np.ndarray, rdiff: float) -> np.ndarray:
+    """``(E,) bool``: the elements whose direct light the per-pixel pass recomputes (eq. 9).
+
+    ``max(Rmax − Rmin, Gmax − Gmin, Bmax − Bmin) > Rdiff`` over an element's corners, where the
+    paper's colours are display values in ``[0, 1]``. Here radiance has the scene's units, so the
+    colours are measured in units of the scene's white level, the 90th percentile of the
+    vertices' brightest channel of ``vertex_total (V, 3)`` (robust to the few very bright
+    emitter vertices): ``Rdiff = 0.05`` is then a step of 5 % of a bright wall, whatever the
+    scene's units. The spread tested is that of ``vertex_direct (V, 3)`` only: indirect light
+    is interpolated anyway, so an element whose spread is indirect gains nothing from the pass.
+    ``elem_verts (E, 4) int`` with ``-1`` for a triangle's fourth corner.
+    """
+    ev = elem_verts
+    if len(ev) == 0:
+        return np.zeros(0, bool)
+    c3 = np.where(ev[:, 3] >= 0, ev[:, 3], ev[:, 0])
+    corners = np.stack([vertex_direct[ev[:, 0]], vertex_direct[ev[:, 1]],
+                        vertex_direct[ev[:, 2]], vertex_direct[c3]], axis=1)
+    spread = (corners.max(axis=1) - corners.min(axis=1)).max(axis=1)
+    used = np.unique(ev[ev >= 0])
+    white = float(np.percentile(vertex_total[used].max(axis=1), 90)) if len(used) else 0.0
+    if white <= 0.0:
+        return np.zeros(len(ev), bool)
+    return spread > rdiff * white
 
 
 def tiles(width: int, height: int, tile: int = TILE) -> list[tuple[slice, slice]]:
@@ -135,12 +214,97 @@ def tiles(width: int, height: int, tile: int = TILE) -> list[tuple[slice, slice]
             for y in range(0, height, tile) for x in range(0, width, tile)]
 
 
+def sample_ids(camera: Camera, rows: slice, cols: slice, spp: int) -> np.ndarray:
+    """``(n,) int64`` global id of each pixel sample of ``rows × cols`` (the order of
+    :func:`primary_rays`): ``(row · W + col) · spp + sample``. It seeds the per-pixel shadow
+    rays, so a pixel gets the same bits whichever tile or worker computes it."""
+    r = np.arange(rows.start, rows.stop, dtype=np.int64)
+    c = np.arange(cols.start, cols.stop, dtype=np.int64)
+    pix = r[:, None] * camera.width + c[None, :]
+    return (pix[..., None] * spp + np.arange(spp, dtype=np.int64)).reshape(-1)
+
+
 def render_tile(ctx: RenderContext, rows: slice, cols: slice) -> np.ndarray:
     """``(h, w, 3) float64`` radiance of one tile, box-filtered over ``ctx.spp`` samples."""
+    return render_tile_stats(ctx, rows, cols)[0]
+
+
+def render_tile_stats(ctx: RenderContext, rows: slice, cols: slice
+                      ) -> tuple[np.ndarray, dict]:
+    """:func:`render_tile` and what the per-pixel pass did: ``{"perpixel": samples whose
+    direct light was recomputed, "specular": samples given a Phong term, "mirror": mirror
+    rays traced}`` (all 0 when the context asks for nothing beyond Gouraud)."""
     o, d = primary_rays(ctx.camera, rows, cols, ctx.spp)
-    L = shade(ctx, o, d)
+    stats = {"perpixel": 0, "specular": 0, "mirror": 0}
+    if ctx.extras:
+        seeds = sample_ids(ctx.camera, rows, cols, ctx.spp)
+        L = _radiance(ctx, o, d, seeds, 0, stats)
+    else:  # the plain Gouraud image: no per-pixel work at all
+        L = shade(ctx, o, d)
     h, w = rows.stop - rows.start, cols.stop - cols.start
-    return L.reshape(h, w, ctx.spp, 3).mean(axis=2)
+    return L.reshape(h, w, ctx.spp, 3).mean(axis=2), stats
+
+
+def _radiance(ctx: RenderContext, o: np.ndarray, d: np.ndarray, seeds: np.ndarray, depth: int,
+              stats: dict) -> np.ndarray:
+    """Radiance along rays with the per-pixel pass, Phong highlights and mirrors.
+
+    Every hit first gets the Gouraud value of :func:`shade` (bit for bit); then
+    - on an element of ``elem_perpixel`` (eq. 9) the direct part is replaced by its exact
+      value at the hit: ``L = interp(vertex_indirect) + Ke + ρ H(p) / π``;
+    - on a material with ``Ks`` (not a mirror) the Phong radiance of every light is added;
+    - on a mirror (``illum 3``), ``Ks`` times the radiance along the mirrored ray, followed
+      ``mirror_depth`` times at most.
+    Secondary rays seed their shadow rays with ``seed + depth · SEED_STRIDE`` (distinct ids).
+    """
+    L, hit, t, tri, u, v, front = _shade(ctx, o, d)
+    if not hit.any():
+        return L
+    idx = np.flatnonzero(hit)[front]
+    tri_f = tri[idx]
+    elem = ctx.tri_element[tri_f]
+    lights = ctx.lights
+    if lights is not None and ctx.elem_perpixel is not None:
+        mirror = ctx.elem_mirror[elem] if ctx.elem_mirror is not None else False
+        pp = ctx.elem_perpixel[elem]
+        ks = np.where(np.asarray(mirror)[..., None], 0.0, ctx.elem_specular[elem])
+        sp = (ks > 0).any(axis=1)
+        work = pp | sp
+        if work.any():
+            w = idx[work]
+            ew = elem[work]
+            p = o[w] + t[w, None] * d[w]
+            H, S = direct_at_hits(
+                ctx.grid, np.ascontiguousarray(p), np.ascontiguousarray(ctx.elem_normal[ew]),
+                np.ascontiguousarray(-d[w]), np.ascontiguousarray(seeds[w]),
+                np.ascontiguousarray(ks[work]), np.ascontiguousarray(ctx.elem_shininess[ew]),
+                float(lights.offset), *lights.light_args, int(lights.samples))
+            ppw = pp[work]
+            if ppw.any():
+                a = w[ppw]
+                e = ew[ppw]
+                L[a] = (_gouraud(ctx.vertex_indirect, ctx.tri_verts[tri[a]], u[a], v[a])
+                        + ctx.elem_emission[e] + ctx.elem_reflectance[e] * H[ppw] / math.pi)
+            spw = sp[work]
+            L[w[spw]] += S[spw]
+            stats["perpixel"] += int(ppw.sum())
+            stats["specular"] += int(spw.sum())
+    if ctx.elem_mirror is not None and depth < ctx.mirror_depth:
+        m = ctx.elem_mirror[elem]
+        if m.any():
+            a = idx[m]
+            nrm = ctx.elem_normal[elem[m]]
+            dm = d[a] - 2.0 * np.einsum("ij,ij->i", d[a], nrm)[:, None] * nrm
+            p = o[a] + t[a, None] * d[a] + ctx.offset * nrm
+            Lr = _radiance(ctx, p, dm, seeds[a] + (depth + 1) * SEED_STRIDE, depth + 1, stats)
+            L[a] += ctx.elem_specular[elem[m]] * Lr
+            stats["mirror"] += int(m.sum())
+    return L
+
+
+#: Seed offset between mirror bounces: above any pixel sample id of a 2¹⁶ × 2¹⁶ image at
+#: 2¹⁰ samples per pixel, so a secondary hit never reuses a primary hit's jitter.
+SEED_STRIDE = 1 << 42
 
 
 def render(ctx: RenderContext) -> np.ndarray:
@@ -150,3 +314,46 @@ def render(ctx: RenderContext) -> np.ndarray:
     for rows, cols in tiles(cam.width, cam.height):
         image[rows, cols] = render_tile(ctx, rows, cols)
     return image
+
+
+def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indirect: np.ndarray,
+                     vertex_direct: np.ndarray, elem_reflectance: np.ndarray,
+                     elem_emission: np.ndarray, elem_specular: np.ndarray,
+                     elem_shininess: np.ndarray, elem_mirror: np.ndarray,
+                     lights: Lights | None, rdiff: float | None, mirror_depth: int,
+                     diagonal: float) -> RenderContext:
+    """``ctx`` with the per-pixel pass and specular light switched on where they apply.
+
+    ``elem_verts (E, 4) int`` are the elements' corners; ``vertex_direct (V, 3)`` is the
+    direct part of ``ctx.vertex_radiance`` (radiance), whose spread selects the elements of
+    eq. 9; ``rdiff`` ``None`` switches the pass off. Arrays a
+    scene does not need are left ``None``: no qualifying element, no ``Ks`` and no mirror give
+    back the plain context, so the tile tasks do exactly the work of a Gouraud image.
+    """
+    from dataclasses import replace
+
+    if lights is not None and lights.empty:
+        lights = None
+    pp = (perpixel_elements(elem_verts, vertex_direct, ctx.vertex_radiance, rdiff)
+          if rdiff is not None and lights is not None else None)
+    spec = np.ascontiguousarray(elem_specular, dtype=np.float64)
+    mirror = np.asarray(elem_mirror, bool)
+    has_pp = pp is not None and pp.any()
+    has_spec = lights is not None and bool((spec[~mirror] > 0).any())
+    has_mirror = mirror_depth > 0 and bool(mirror.any())
+    if not (has_pp or has_spec or has_mirror):
+        return ctx
+    E = len(elem_reflectance)
+    return replace(
+        ctx,
+        vertex_indirect=np.ascontiguousarray(vertex_indirect, dtype=np.float64),
+        elem_perpixel=pp if has_pp else np.zeros(E, bool),
+        elem_reflectance=np.ascontiguousarray(elem_reflectance, dtype=np.float64),
+        elem_emission=np.ascontiguousarray(elem_emission, dtype=np.float64),
+        elem_specular=spec,
+        elem_shininess=np.ascontiguousarray(elem_shininess, dtype=np.float64),
+        elem_mirror=mirror,
+        lights=lights if (has_pp or has_spec) else None,
+        mirror_depth=int(mirror_depth) if has_mirror else 0,
+        offset=tolerances.RAY_OFFSET * float(diagonal),
+    )

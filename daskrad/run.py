@@ -161,9 +161,21 @@ def _render_context(scene, settings, h, reflectance, sol, amb, extra, grid_parts
         # with emitters shot, their direct light is part of `indirect`)
     indirect = resolve_tvertices(indirect, tv) / math.pi
     direct_v = resolve_tvertices(direct_v, tv) / math.pi
-    return render.RenderContext(grid=grid, tri_verts=tri_verts, tri_element=tri_elem,
-                                elem_normal=h.elem_normal, vertex_radiance=indirect + direct_v,
-                                camera=camera, spp=settings.spp)
+    ctx = render.RenderContext(grid=grid, tri_verts=tri_verts, tri_element=tri_elem,
+                               elem_normal=h.elem_normal, vertex_radiance=indirect + direct_v,
+                               camera=camera, spp=settings.spp)
+    # step 4: per-pixel direct light (eq. 9), Phong highlights, mirrors; the plain context
+    # comes back when the scene needs none of them
+    dctx = extra.get("direct_context")
+    mats = scene.materials
+    return render.perpixel_context(
+        ctx, h.elem_verts, vertex_indirect=indirect, vertex_direct=direct_v,
+        elem_reflectance=reflectance, elem_emission=mats.emission[h.elem_material],
+        elem_specular=mats.specular[h.elem_material],
+        elem_shininess=mats.shininess[h.elem_material], elem_mirror=mats.mirror[h.elem_material],
+        lights=direct.lights_of(dctx) if (H is not None and dctx is not None) else None,
+        rdiff=settings.rdiff if settings.per_pixel else None,
+        mirror_depth=settings.mirror_depth, diagonal=scene.diagonal)
 
 
 def _direct_pass(scene, settings, h, grid, tris, tri_verts, tri_elem, emission, executor,

@@ -1,0 +1,53 @@
+"""Per-pixel lighting: direct light and Phong highlights at ray hits (DESIGN §1 step 4, eq. 9).
+
+The renderer interpolates vertex radiance everywhere, then calls :func:`direct_at_hits` on the
+few hits that need more: hits on elements whose vertex colours spread more than ``Rdiff``
+(paper eq. 9: their direct light is recomputed at the hit, exactly as at a vertex) and hits on
+materials with a specular part (a Phong lobe from every light). Both go through
+:func:`daskrad.kernels.direct.irradiance_one`, so a pixel and a vertex at the same place get the
+same direct light, with the same robust shadow-ray offset.
+
+Area-light shadow rays are stratified and jittered by a hash of the hit's ``seed`` (its pixel
+sample id, see :func:`daskrad.render.sample_ids`): a pixel's value depends on the pixel, never
+on the tile or the worker that computed it, and a penumbra comes out as fine noise, not bands.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from daskrad.kernels._jit import jit
+from daskrad.kernels.direct import irradiance_one
+
+
+@jit
+def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_int, dl_dir,
+                   dl_irr, em_corners, em_count, em_normal, em_radiance, em_area, samples):
+    """Direct irradiance and Phong radiance at ray hits.
+
+    Parameters
+    ----------
+    points, normals : (n, 3) float64
+        Hit points and the unit normal of the lit side of the surface hit.
+    views : (n, 3) float64
+        Unit directions from each hit back along its ray (towards the eye).
+    seeds : (n,) int64
+        Jitter seed of each hit (its pixel sample id), ≥ 0.
+    ks : (n, 3) float64, ns : (n,) float64
+        Phong ``Ks``, ``Ns`` of the material hit; a row of zeros skips the specular work.
+    off : float
+        Shadow-ray offset, an absolute length.
+    pl_pos ... em_area, samples
+        The lights, as :func:`daskrad.kernels.direct.irradiance_one` takes them.
+
+    Returns ``H (n, 3)``, the irradiance (W per unit area), and ``S (n, 3)``, the Phong
+    radiance ``Σ_lights Ks (Ns+2)/(2π) max(0, r·v)^Ns dH``.
+    """
+    n = points.shape[0]
+    H = np.zeros((n, 3))
+    S = np.zeros((n, 3))
+    for i in range(n):
+        irradiance_one(grid, points[i], points[i], normals[i], off, seeds[i], pl_pos, pl_int,
+                       dl_dir, dl_irr, em_corners, em_count, em_normal, em_radiance, em_area,
+                       samples, views[i], ks[i], ns[i], H[i], S[i])
+    return H, S

@@ -1,0 +1,174 @@
+"""The per-pixel pass (paper eq. 9; issue 5, item 4): direct light recomputed per pixel."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from daskrad import render, solve
+from daskrad.formfactor import analytic_rows
+from daskrad.run import _render_context, solve_scene
+from daskrad.scene import Camera, scene_from_arrays
+from daskrad.settings import Settings
+
+LIGHT = np.array([-0.35, 2.0, 0.15])
+INTENSITY = 3.0
+RHO = 0.5
+SQ = (0.13, 1.13, 0.21, 1.21)  # blocker: x0, x1, z0, z1 at y = 1
+
+
+def _blocker_scene(size=48):
+    """A 4 × 4 floor (ρ 0.5, facing up) and a black 1 × 1 blocker at y = 1 facing down, under
+    a point light: the floor's only light is direct (the blocker reflects nothing), so its
+    exact radiance is ``ρ I cosθ / (π r²)`` outside the shadow and 0 inside."""
+    x0, x1, z0, z1 = SQ
+    v = np.array([[-2, 0, -2], [-2, 0, 2], [2, 0, 2], [2, 0, -2],
+                  [x0, 1, z0], [x1, 1, z0], [x1, 1, z1], [x0, 1, z1]], float)
+    cam = Camera(eye=np.array([0.3, 6.0, 0.4]), look_at=np.array([0.3, 0.0, 0.4]),
+                 up=np.array([0.0, 0.0, 1.0]), fov=42.0, width=size, height=size)
+    return scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7]]), [0, 1],
+                             diffuse=[[RHO] * 3, [0.0] * 3], emission=[[0.0] * 3] * 2,
+                             camera=cam, point_lights=(LIGHT[None], [[INTENSITY] * 3]))
+
+
+def _context(scene, **opts):
+    settings = Settings(**{"patch_size": 4.0, "element_size": 0.5, "spp": 1, **opts})
+    extra: dict = {}
+    h, refl, sol, (_, tri_verts, tri_elem, grid) = solve_scene(scene, settings, extra=extra)
+    amb = solve.ambient(h, refl, sol.unshot)
+    return _render_context(scene, settings, h, refl, sol, amb, extra,
+                           (tri_verts, tri_elem, grid), scene.camera), h
+
+
+def _render(ctx, tile=render.TILE):
+    cam = ctx.camera
+    image = np.zeros((cam.height, cam.width, 3))
+    count = 0
+    for rows, cols in render.tiles(cam.width, cam.height, tile):
+        image[rows, cols], stats = render.render_tile_stats(ctx, rows, cols)
+        count += stats["perpixel"]
+    return image, count
+
+
+def _analytic(cam):
+    """Exact radiance at every pixel centre (spp 1) and whether the centre's floor point is in
+    the shadow: ``(H, W)`` values, ``(H, W)`` int class (0 lit, 1 shadow, 2 blocker/miss)."""
+    o, d = render.primary_rays(cam, slice(0, cam.height), slice(0, cam.width), 1)
+    x0, x1, z0, z1 = SQ
+    tb = (1.0 - o[:, 1]) / d[:, 1]
+    pb = o + tb[:, None] * d
+    on_blocker = (pb[:, 0] > x0) & (pb[:, 0] < x1) & (pb[:, 2] > z0) & (pb[:, 2] < z1)
+    p = o + (-o[:, 1] / d[:, 1])[:, None] * d
+    on_floor = (np.abs(p[:, 0]) < 2) & (np.abs(p[:, 2]) < 2) & ~on_blocker
+    # where the segment p → light crosses y = 1
+    s = (1.0 - p[:, 1]) / (LIGHT[1] - p[:, 1])
+    c = p + s[:, None] * (LIGHT - p)
+    shadow = (c[:, 0] > x0) & (c[:, 0] < x1) & (c[:, 2] > z0) & (c[:, 2] < z1)
+    r = LIGHT - p
+    r2 = (r**2).sum(axis=1)
+    lit = RHO * INTENSITY * (r[:, 1] / np.sqrt(r2)) / r2 / math.pi
+    value = np.where(on_floor & ~shadow, lit, 0.0)
+    cls = np.where(on_floor, np.where(shadow, 1, 0), 2)
+    return value.reshape(cam.height, cam.width), cls.reshape(cam.height, cam.width)
+
+
+def _near_edge(cls):
+    """``(H, W) bool``: pixels with a 4-neighbour of another class (within a pixel of an edge)."""
+    edge = np.zeros(cls.shape, bool)
+    edge[1:] |= cls[1:] != cls[:-1]
+    edge[:-1] |= cls[1:] != cls[:-1]
+    edge[:, 1:] |= cls[:, 1:] != cls[:, :-1]
+    edge[:, :-1] |= cls[:, 1:] != cls[:, :-1]
+    return edge
+
+
+def test_point_light_shadow_is_sharp_to_within_a_pixel():
+    scene = _blocker_scene()
+    ctx, _ = _context(scene, rdiff=0.05)
+    image, count = _render(ctx)
+    exact, cls = _analytic(scene.camera)
+    assert count > 0
+    # per pixel the direct light is exact (I cosθ/r², a shadow ray): away from the shadow's
+    # outline every pixel equals the analytic value to round-off; a pixel whose centre lies
+    # within a pixel of the outline may differ (the hit point and the analytic centre differ
+    # by the grid's edge tolerance), so the edge is sharp to within a pixel
+    wrong = ~np.isclose(image[..., 0], exact, rtol=1e-9, atol=1e-12)
+    assert (cls == 1).sum() > 40             # the shadow is in view
+    assert not (wrong & ~_near_edge(cls)).any()
+    # the Gouraud image alone blurs the edge over whole elements: many pixels more than a
+    # pixel away from the outline are wrong there (the test could fail)
+    plain, count0 = _render(_context(scene, per_pixel=False)[0])
+    assert count0 == 0
+    wrong0 = ~np.isclose(plain[..., 0], exact, rtol=1e-9, atol=1e-12)
+    assert (wrong0 & ~_near_edge(cls)).sum() > 20
+
+
+def test_no_qualifying_element_costs_nothing_and_changes_no_bit():
+    scene = _blocker_scene(32)
+    plain, _ = _render(_context(scene, per_pixel=False)[0])
+    # a threshold no element reaches: the plain context comes back, no pixel is recomputed
+    ctx, _ = _context(scene, rdiff=1e9)
+    assert ctx.elem_perpixel is None and ctx.lights is None and not ctx.extras
+    image, count = _render(ctx)
+    assert count == 0
+    assert np.array_equal(image, plain)
+
+
+def test_pass_changes_only_pixels_of_qualifying_elements():
+    # the per-pixel path itself leaves every pixel of a non-qualifying element bit-identical
+    scene = _blocker_scene(32)
+    plain, _ = _render(_context(scene, per_pixel=False)[0])
+    ctx, _ = _context(scene, rdiff=0.05)
+    image, count = _render(ctx)
+    o, d = render.primary_rays(ctx.camera, slice(0, 32), slice(0, 32), 1)
+    from daskrad.kernels.grid import closest_hit
+
+    _, tri, _, _ = closest_hit(ctx.grid, o, d, np.zeros(len(o)), np.full(len(o), np.inf))
+    qualifies = np.zeros(len(o), bool)
+    qualifies[tri >= 0] = ctx.elem_perpixel[ctx.tri_element[tri[tri >= 0]]]
+    qualifies = qualifies.reshape(32, 32)
+    assert 0 < count == qualifies.sum()
+    assert np.array_equal(image[~qualifies], plain[~qualifies])
+    assert not np.array_equal(image[qualifies], plain[qualifies])
+
+
+def test_area_light_per_pixel_is_exact_unoccluded_and_tile_independent():
+    # A floor under a small emitter, nothing in between: the visible fraction is exactly 1, so
+    # every floor pixel of a qualifying element is ρ L F(p) (Lambert's formula at the hit).
+    v = np.array([[-1, 0, -1], [-1, 0, 1], [1, 0, 1], [1, 0, -1],
+                  [-0.2, 0.6, -0.2], [0.2, 0.6, -0.2], [0.2, 0.6, 0.2], [-0.2, 0.6, 0.2]])
+    cam = Camera(eye=np.array([0.0, 3.0, 0.05]), look_at=np.zeros(3),
+                 up=np.array([0.0, 0.0, 1.0]), fov=40.0, width=40, height=40)
+    scene = scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7]]), [0, 1],
+                              diffuse=[[RHO] * 3, [0.0] * 3], emission=[[0] * 3, [2.0] * 3],
+                              camera=cam)
+    ctx, h = _context(scene, patch_size=2.0, element_size=0.5, rdiff=0.01, subdivide=0.0)
+    image, count = _render(ctx)
+    assert count > 0
+    o, d = render.primary_rays(cam, slice(0, 40), slice(0, 40), 1)
+    p = o + (-o[:, 1] / d[:, 1])[:, None] * d
+    from daskrad.kernels.grid import closest_hit
+
+    _, tri, _, _ = closest_hit(ctx.grid, o, d, np.zeros(len(o)), np.full(len(o), np.inf))
+    on_floor = (tri >= 0) & (np.abs(p[:, 0]) < 1) & (np.abs(p[:, 2]) < 1)
+    on_floor &= ~((np.abs(p[:, 0]) < 0.2) & (np.abs(p[:, 2]) < 0.2))  # the emitter in front
+    sel = np.zeros(len(o), bool)
+    sel[on_floor] = ctx.elem_perpixel[ctx.tri_element[tri[on_floor]]]
+    F = analytic_rows(p[sel], np.tile([0.0, 1.0, 0.0], (sel.sum(), 1)), v,
+                      np.array([[4, 5, 6, 7]]))[:, 0]
+    # indirect light is 0 (the emitter is black, the floor sees nothing else); the unoccluded
+    # term is Lambert's exact formula, the visibility exactly 1: round-off only
+    np.testing.assert_allclose(image.reshape(-1, 3)[sel, 0], RHO * 2.0 * F, rtol=1e-9)
+    # the same bits whatever the tiling (shadow rays seeded by pixel sample, not by tile)
+    whole = render.render_tile(ctx, slice(0, 40), slice(0, 40))
+    small, _ = _render(ctx, tile=7)
+    assert np.array_equal(whole, image) and np.array_equal(small, image)
+
+
+def test_sample_ids_are_global_pixel_sample_ids():
+    # the seed of a pixel sample's shadow rays: (row · W + col) · spp + sample, whatever tile
+    ids = render.sample_ids(Camera(eye=np.zeros(3), look_at=np.ones(3), up=np.ones(3),
+                                   fov=40.0, width=10, height=8), slice(2, 4), slice(3, 5), 4)
+    assert ids.tolist() == [(r * 10 + c) * 4 + s for r in (2, 3) for c in (3, 4)
+                            for s in range(4)]
