@@ -38,6 +38,13 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _nonneg_float(text: str) -> float:
+    value = float(text)
+    if not (value >= 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="daskrad",
@@ -70,6 +77,18 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--spp", type=_positive_int, help="samples per pixel")
     run.add_argument("--width", type=_positive_int, help="image width (default: the camera's)")
     run.add_argument("--height", type=_positive_int, help="image height")
+    run.add_argument("--rdiff", type=_nonneg_float,
+                     help="per-pixel pass threshold (eq. 9), in units of the scene's white "
+                          "level (default 0.05)")
+    run.add_argument("--no-per-pixel", dest="per_pixel", action="store_const", const=False,
+                     help="no per-pixel pass: Gouraud-interpolated direct light only")
+    run.add_argument("--subdivide", type=_nonneg_float,
+                     help="relative spread of direct light splitting an element (0: off)")
+    run.add_argument("--no-two-pass", dest="two_pass", action="store_const", const=False,
+                     help="shoot area lights like any patch instead of gathering them")
+    run.add_argument("--area-samples", type=_positive_int,
+                     help="shadow rays per area light: N x N (default 4)")
+    run.add_argument("--mirror-depth", type=_nonneg_int, help="mirror bounces per pixel ray")
     run.add_argument("--resume", action="store_true", help="continue from OUT.zarr's checkpoint")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     return parser

@@ -39,11 +39,11 @@ def run(scene_path, output, settings: Settings, progress: bool = True,
     scene = load_scene(scene_path, config)                                   # 1 preprocess
     store = Store(output.with_suffix(".zarr"), settings, resume=resume)
     executor = executor or _executor(settings, store)
-    store.open()
-    if executor.dashboard_link:
-        print(f"daskrad: dashboard {executor.dashboard_link} (progress: "
-              f"{executor.dashboard_link.rsplit('/', 1)[0]}/daskrad)", file=sys.stderr)
     try:
+        store.open()                  # a new store, or the checkpoint to resume from
+        if executor.dashboard_link:
+            print(f"daskrad: dashboard {executor.dashboard_link} (progress: "
+                  f"{executor.dashboard_link.rsplit('/', 1)[0]}/daskrad)", file=sys.stderr)
         bar = _Bar(settings, enabled=progress)
         extra: dict = {}
         h, reflectance, sol, grid_parts = solve_scene(scene, settings, executor, seconds,
@@ -75,7 +75,10 @@ def run(scene_path, output, settings: Settings, progress: bool = True,
                    "emitters": int(scene.emitting.sum()),
                    "point_lights": len(scene.point_lights),
                    "directional_lights": len(scene.directional_lights),
-                   "dropped_degenerate": scene.dropped_degenerate},
+                   "dropped_degenerate": scene.dropped_degenerate,
+                   # eq. 9: elements whose direct light the per-pixel pass recomputes
+                   "perpixel_elements": int(ctx.elem_perpixel.sum())
+                   if ctx.elem_perpixel is not None else 0},
         "iterations": sol.iteration,
         "converged": sol.converged,
         "unshot_rms_history": [
