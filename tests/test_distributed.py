@@ -214,3 +214,17 @@ def test_loopback_cluster_script_and_scheduler_option(reference, tmp_path):
         except subprocess.TimeoutExpired:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
+
+
+def test_without_workers_option_small_scenes_stay_in_process():
+    # DESIGN §4: a cluster costs seconds a small scene does not need; a big one gets 2 workers
+    from daskrad.cli import build_parser
+    from daskrad.run import _auto_workers, settings_from_args
+
+    args = build_parser().parse_args(["run", str(CORNELL)])
+    assert settings_from_args(args).workers is None          # decided by run() from the scene
+    scene = load_scene(CORNELL)
+    assert _auto_workers(scene, Settings()) == 0              # ~3,700 elements
+    assert _auto_workers(scene, Settings(element_size=5.0)) == 2   # ~119,000 elements
+    explicit = build_parser().parse_args(["run", str(CORNELL), "--workers", "0"])
+    assert settings_from_args(explicit).workers == 0
