@@ -28,3 +28,10 @@ EDGE_ANGLE_DEG = 1.0
 #: tangent plane (hemisphere-base form factor, DESIGN §2), so a polygon coplanar with the
 #: shooter (its own polygon, the floor it stands on) vanishes instead of rasterizing round-off.
 HORIZON_EPS = 1e-9
+
+#: Automatic edge-split threshold of the item-buffer methods (``edge_angle=None``, the default):
+#: a polyline piece may lie at most this fraction of a pixel inside the projected arc it
+#: replaces (sagitta ``<= θ²/8`` on the disc, a pixel ``2/R``: ``θ = sqrt(16 s / R)``, 11.5° at
+#: R = 100). A quarter pixel is half the raster's own ±1/2-pixel sampling of an outline, and
+#: the anti-aliased default takes an unoccluded element's size from Lambert's formula anyway.
+EDGE_SAGITTA_PX = 0.25

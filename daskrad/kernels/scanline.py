@@ -76,9 +76,9 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz, n_li
     qy = np.empty(5)
     qz = np.empty(5)
     qclip = np.zeros(5, dtype=np.bool_)
-    cx = np.empty(4)
-    cy = np.empty(4)
-    cz = np.empty(4)
+    cx = np.empty(5)
+    cy = np.empty(5)
+    cz = np.empty(5)
     n_elem = elem_verts.shape[0]
     for e in range(n_elem):
         m, mm, c = project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz,
