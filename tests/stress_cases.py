@@ -47,6 +47,25 @@ BOX = Settings(two_pass=False, resolution=64, patch_size=0.25, element_size=0.12
                tolerance=1e-4, max_iterations=8000)
 
 
+#: Known failures (xfail, strict, in tests/test_stress.py), with what was measured and where
+#: the fix belongs.
+KNOWN_FAILURES = {
+    "coplanar overlapping faces": "a face lying in another's plane z-fights: the hidden "
+    "copy still shoots its emission and receives nothing; measured B = E (furnace error 50 %) "
+    "under the rug, 6 % above the bound E/(1-rho) elsewhere; fix: refuse (or cut) coplanar "
+    "overlaps in daskrad/scene/validate.py",
+    "non-manifold edge (fin)": "point-sampled shooters along the fin's junction with the floor "
+    "break reciprocity: furnace error 1.4 %, 1.1 % above the bound E/(1-rho) (limit 1 %); "
+    "fix: the near-field treatment in daskrad/shoot.py for receivers sharing an edge",
+    "units": "hemisphere_visibility (kernels/hemisphere.py) decides whether an element "
+    "covering no pixel centre is visible at the ONE pixel nearest its direction, "
+    "floor((x+1)·R/2): in the coarse Cornell box patch 33 (green wall, z = 466) sees floor "
+    "element 59 whose vertex mean is also at z = 466, exactly on a pixel boundary, and "
+    "round-off picks the pixel, so F_ij jumps between Lambert's 0.0016 and 0 with the scale; "
+    "measured image difference 1.2e-3 (x1e-3) and 2.6e-3 (x1e3) per pixel, limit 1e-4",
+}
+
+
 @dataclass
 class Result:
     """One measured figure of a case: ``error`` must be ``<= limit`` (``ok``)."""
@@ -57,6 +76,7 @@ class Result:
     limit: float
     note: str = ""
     extra: dict = field(default_factory=dict)
+    measured_only: bool = False  # a figure for a choice (float32 drift), not a requirement
 
     @property
     def ok(self) -> bool:
@@ -398,7 +418,8 @@ def accumulation_drift(n_shots: int, subdivisions: int, method: str = "analytic"
     emission = np.zeros((6, 3))
     emission[3] = KE
     scene = box_scene(diffuse=0.7, emission_per_face=emission, subdivisions=subdivisions)
-    h = build_hierarchy(scene, 1.0 / subdivisions, 1.0 / subdivisions)
+    size = 1.001 / subdivisions  # one patch and one element per polygon, round-off aside
+    h = build_hierarchy(scene, size, size)
     rho = scene.materials.diffuse[h.elem_material]
     sol = solve.initial_solution(h, emission_of(scene, h))
     ctx = shoot.make_context(h, method, resolution)
@@ -413,8 +434,12 @@ def accumulation_drift(n_shots: int, subdivisions: int, method: str = "analytic"
             scale = (f * (h.patch_area[p] / h.elem_area[ids])).astype(t)
             delta = rho[ids].astype(t) * (scale[:, None] * dB[None, :])
             B[ids] += delta
-            w = (h.elem_area[ids] / h.patch_area[h.elem_patch[ids]]).astype(t)
-            np.add.at(U, h.elem_patch[ids], delta * w[:, None])
+            w = h.elem_area[ids] / h.patch_area[h.elem_patch[ids]]
+            # one shot's sum per patch in float64; the accumulation over shots is in `t`
+            part = (delta * w[:, None]).astype(np.float64)
+            for c in range(3):
+                U[:, c] += np.bincount(h.elem_patch[ids], weights=part[:, c],
+                                       minlength=h.n_patches).astype(t)
         solve.apply_shot(h, rho, sol, p, ids, f)
     ref = states[np.longdouble][0]
     scale = float(np.abs(ref).max())

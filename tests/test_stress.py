@@ -41,16 +41,9 @@ def _safety_ok(results, furnace: bool):
 # --- 1. degenerate geometry -----------------------------------------------------------------
 
 DEGENERATE = sc.degenerate_scenes()
-#: Cases that are wrong today, with the measured failure (see the report of issue 7).
-DEGENERATE_XFAIL = {
-    "coplanar overlapping faces": "a face lying in another's plane z-fights: the hidden "
-    "copy still shoots its emission and receives nothing; measured B = E (furnace error 50 %) "
-    "under the rug, 6 % above the bound E/(1-rho) elsewhere; fix: refuse (or cut) coplanar "
-    "overlaps in daskrad/scene/validate.py",
-    "non-manifold edge (fin)": "point-sampled shooters along the fin's junction with the floor "
-    "break reciprocity: furnace error 1.4 %, 1.1 % above the bound E/(1-rho) (limit 1 %); "
-    "fix: the near-field treatment in daskrad/shoot.py for receivers sharing an edge",
-}
+#: Cases that are wrong today, with the measured failure (stress_cases.KNOWN_FAILURES).
+DEGENERATE_XFAIL = {c: sc.KNOWN_FAILURES[c] for c in
+                    ("coplanar overlapping faces", "non-manifold edge (fin)")}
 
 
 @pytest.mark.parametrize("case", [c for c in DEGENERATE if c != "flipped normal"])
@@ -111,13 +104,7 @@ def test_flipped_normal_is_a_hole_one_sided_and_creates_no_energy():
 
 # --- 2. units and placement -----------------------------------------------------------------
 
-UNITS_XFAIL = (
-    "hemisphere_visibility (kernels/hemisphere.py) decides whether an element covering no "
-    "pixel centre is visible at the ONE pixel nearest its direction, floor((x+1)·R/2): in the "
-    "coarse Cornell box patch 33 (green wall, z = 466) sees floor element 59 whose vertex "
-    "mean is also at z = 466, exactly on a pixel boundary, and round-off picks the pixel, so "
-    "F_ij jumps between Lambert's 0.0016 and 0 with the scale; measured image difference "
-    "1.2e-3 (x1e-3) and 2.6e-3 (x1e3) per pixel, limit 1e-4")
+UNITS_XFAIL = sc.KNOWN_FAILURES["units"]
 
 
 @pytest.fixture(scope="module")
