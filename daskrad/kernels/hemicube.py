@@ -31,7 +31,7 @@ import numpy as np
 
 from daskrad.kernels._jit import jit
 from daskrad.kernels.geometry import element_planes, lex_less, scene_diagonal
-from daskrad.kernels.hemisphere import fill_polygon, local_frame
+from daskrad.kernels.hemisphere import element_spheres, fill_polygon, local_frame
 
 #: Face axes in the shooter's local frame: for each of the 5 faces, (index, sign) of the local
 #: coordinate giving ``a``, ``b`` and ``c``. Face 0 is the top; 1–4 the sides, whose ``b`` is the
@@ -120,9 +120,16 @@ def _clip(n, pa, pb, pc, ka, kb, kc, off, oa, ob, oc):
 
 
 @jit
-def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz, resolution,
-           weights, mask, xc, zc, lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, out):
-    """One shot: add each element's delta form factors into ``out (E,)``."""
+def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, sctr, srad, hz,
+           resolution, weights, mask, xc, zc, lx, ly, lz, item, zbuf, xs, ys, xcross, cnt,
+           loc, pa, pb, pc, qa, qb, qc, nl, out):
+    """One shot: add each element's delta form factors into ``out (E,)``.
+
+    The same generic savings as the hemisphere base: culling by one dot product each
+    (back-facing, bounding sphere below the horizon) and no allocation per shot; plus the
+    hemicube's own standard trick, per-face outcodes: a face whose frustum has all corners
+    outside one of its planes is skipped, and one with every corner inside all of them is
+    projected without clipping (``loc, pa … nl`` are scratch)."""
     r = resolution
     h = side_rows(r)
     half_r = 0.5 * r
@@ -130,18 +137,13 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz, reso
     for k in range(item.shape[0]):
         item[k] = -1
         zbuf[k] = -np.inf
-    loc = np.empty(3)
-    pa = np.empty(12)
-    pb = np.empty(12)
-    pc = np.empty(12)
-    qa = np.empty(12)
-    qb = np.empty(12)
-    qc = np.empty(12)
-    nl = np.empty(3)
+    sdotn = snx * sx + sny * sy + snz * sz
     n_elem = elem_verts.shape[0]
     for e in range(n_elem):
         c = eoff[e] - (enrm[e, 0] * sx + enrm[e, 1] * sy + enrm[e, 2] * sz)
         if not c < 0.0:
+            continue
+        if snx * sctr[e, 0] + sny * sctr[e, 1] + snz * sctr[e, 2] - sdotn + srad[e] <= hz:
             continue
         k = 4 if elem_verts[e, 3] >= 0 else 3
         zmax = -np.inf
@@ -159,6 +161,10 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz, reso
             sb = float(_FACE_AXES[f, 1, 1])
             ic = _FACE_AXES[f, 2, 0]
             sc = float(_FACE_AXES[f, 2, 1])
+            # outcodes, one bit per plane: the face's frustum |a| < c, |b| < c (top) or b < c
+            # (sides), and the horizon (c > hz on the top, b > hz on the sides)
+            all_out = 31
+            any_out = 0
             for a in range(k):
                 vi = elem_verts[e, a]
                 loc[0] = lx[vi]
@@ -167,21 +173,47 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz, reso
                 pa[a] = sa * loc[ia]
                 pb[a] = sb * loc[ib]
                 pc[a] = sc * loc[ic]
-            # horizon (z > hz: c on the top face, b on the sides), then the frustum
-            if f == 0:
-                m = _clip(k, pa, pb, pc, 0.0, 0.0, 1.0, hz, qa, qb, qc)
-            else:
-                m = _clip(k, pa, pb, pc, 0.0, 1.0, 0.0, hz, qa, qb, qc)
-            m = _clip(m, qa, qb, qc, -1.0, 0.0, 1.0, 0.0, pa, pb, pc)
-            m = _clip(m, pa, pb, pc, 1.0, 0.0, 1.0, 0.0, qa, qb, qc)
-            m = _clip(m, qa, qb, qc, 0.0, -1.0, 1.0, 0.0, pa, pb, pc)
-            if f == 0:
-                m = _clip(m, pa, pb, pc, 0.0, 1.0, 1.0, 0.0, qa, qb, qc)
-            else:
+                code = 0
+                if not pc[a] - pa[a] > 0.0:
+                    code |= 1
+                if not pc[a] + pa[a] > 0.0:
+                    code |= 2
+                if not pc[a] - pb[a] > 0.0:
+                    code |= 4
+                if f == 0:
+                    if not pc[a] + pb[a] > 0.0:
+                        code |= 8
+                    if not pc[a] > hz:
+                        code |= 16
+                elif not pb[a] > hz:
+                    code |= 16
+                all_out &= code
+                any_out |= code
+            if all_out != 0:
+                continue  # every corner outside one plane: nothing on this face
+            if any_out == 0:
+                # every corner strictly inside: the clips below would return it unchanged
+                m = k
                 for a in range(m):
                     qa[a] = pa[a]
                     qb[a] = pb[a]
                     qc[a] = pc[a]
+            else:
+                # horizon (z > hz: c on the top face, b on the sides), then the frustum
+                if f == 0:
+                    m = _clip(k, pa, pb, pc, 0.0, 0.0, 1.0, hz, qa, qb, qc)
+                else:
+                    m = _clip(k, pa, pb, pc, 0.0, 1.0, 0.0, hz, qa, qb, qc)
+                m = _clip(m, qa, qb, qc, -1.0, 0.0, 1.0, 0.0, pa, pb, pc)
+                m = _clip(m, pa, pb, pc, 1.0, 0.0, 1.0, 0.0, qa, qb, qc)
+                m = _clip(m, qa, qb, qc, 0.0, -1.0, 1.0, 0.0, pa, pb, pc)
+                if f == 0:
+                    m = _clip(m, pa, pb, pc, 0.0, 1.0, 1.0, 0.0, qa, qb, qc)
+                else:
+                    for a in range(m):
+                        qa[a] = pa[a]
+                        qb[a] = pb[a]
+                        qc[a] = pc[a]
             if m < 3:
                 continue
             for a in range(m):
@@ -234,6 +266,7 @@ def hemicube_shots(points, normals, vertices, elem_verts, resolution, horizon_ep
     r = resolution
     h = side_rows(r)
     enrm, eoff = element_planes(vertices, elem_verts)
+    sctr, srad = element_spheres(vertices, elem_verts)
     hz = max(horizon_eps * scene_diagonal(vertices), 1e-300)
     weights, _ = delta_form_factors(r)
     n_pix = weights.shape[0]
@@ -253,10 +286,19 @@ def hemicube_shots(points, normals, vertices, elem_verts, resolution, horizon_ep
     ys = np.empty(12)
     xcross = np.empty((r, 12))
     cnt = np.zeros(r, dtype=np.int64)
+    loc = np.empty(3)
+    pa = np.empty(12)
+    pb = np.empty(12)
+    pc = np.empty(12)
+    qa = np.empty(12)
+    qb = np.empty(12)
+    qc = np.empty(12)
+    nl = np.empty(3)
     out = np.zeros((n_shot, n_elem))
     for s in range(n_shot):
         _shoot(points[s, 0], points[s, 1], points[s, 2],
                normals[s, 0], normals[s, 1], normals[s, 2],
-               vertices, elem_verts, enrm, eoff, hz, r, weights, mask, xc, zc,
-               lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, out[s])
+               vertices, elem_verts, enrm, eoff, sctr, srad, hz, r, weights, mask, xc, zc,
+               lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, loc, pa, pb, pc, qa, qb, qc, nl,
+               out[s])
     return out

@@ -120,13 +120,33 @@ def split_table(edge_angle):
 
 
 @jit
-def _emit_edge(ax, ay, az, ra, bx, by, bz, rb, horizon, cos_thr, tab, xs, ys, m):
+def unit(x, y, z):
+    """``v / |v|``: the one expression every projection uses (eqs. 1–3), so a corner shared by
+    two elements, or projected once per vertex and once after a clip, gives the same bits."""
+    r = np.sqrt(x * x + y * y + z * z)
+    if not r > 0.0:
+        return 0.0, 0.0, 0.0  # the shooting point itself (on its own polygon): never projected
+    return x / r, y / r, z / r
+
+
+@jit
+def unit_vectors(lx, ly, lz, ux, uy, uz):
+    """Per-vertex directions :func:`unit` into ``ux, uy, uz (V,)``, once per shot (a vertex is
+    shared by about four elements); ``(ux, uy)`` is the vertex's point on the disc."""
+    for v in range(lx.shape[0]):
+        ux[v], uy[v], uz[v] = unit(lx[v], ly[v], lz[v])
+
+
+@jit
+def _emit_edge(ax, ay, az, uax, uay, uaz, bx, by, bz, ubx, uby, ubz, horizon, cos_thr, tab,
+               xs, ys, m):
     """Append the projected polyline of the edge ``a → b`` (without ``b``) to ``xs, ys``.
 
-    ``ra = |a|``, ``rb = |b|`` come from the caller, computed once per corner by the same
-    expression for every element, so shared corners project to bit-identical points.
-    Returns the new length. ``horizon`` marks the edge made by the horizon clip, which is
-    pushed out of the disc (see the module docstring). ``tab`` is :func:`split_table`.
+    ``a, b`` are the endpoints in the local frame (their lexicographic order picks the canonical
+    endpoint), ``ua, ub`` their directions :func:`unit` (computed by the same expression for
+    every element, so shared corners project to bit-identical points). Returns the new length.
+    ``horizon`` marks the edge made by the horizon clip, which is pushed out of the disc (see
+    the module docstring). ``tab`` is :func:`split_table`.
 
     The edge subtends ``θ`` at the origin; it is split into ``n = ceil(θ/thr)`` pieces (eq. 4):
     points at the angles ``k·thr`` (``k < n``) from the canonical endpoint ``c``, so every piece
@@ -136,22 +156,21 @@ def _emit_edge(ax, ay, az, ra, bx, by, bz, rb, horizon, cos_thr, tab, xs, ys, m)
     projection (eqs. 1–3) is just its ``(x, y)``: no point on the edge, no square root per point;
     ``cos(k·thr), sin(k·thr)`` follow by the rotation recurrence (round-off ``~k ε``).
     """
-    xs[m] = ax / ra
-    ys[m] = ay / ra
+    xs[m] = uax
+    ys[m] = uay
     m += 1
-    dot = ax * bx + ay * by + az * bz
-    split = dot < cos_thr * ra * rb
+    cos_theta = uax * ubx + uay * uby + uaz * ubz  # symmetric in a, b: same for a neighbour
+    split = cos_theta < cos_thr
     if not split and not horizon:
         return m
     # Canonical endpoint first, so a neighbour traversing b → a computes identical points.
     swap = lex_less(bx, by, bz, ax, ay, az)
     if swap:
-        cx, cy, cz, rc = bx, by, bz, rb
-        dx, dy, dz_ = ax, ay, az
+        cx, cy, cz = ubx, uby, ubz
+        dx, dy, dz_ = uax, uay, uaz
     else:
-        cx, cy, cz, rc = ax, ay, az, ra
-        dx, dy, dz_ = bx, by, bz
-    cos_theta = (cx * dx + cy * dy + cz * dz_) / (ra * rb)
+        cx, cy, cz = uax, uay, uaz
+        dx, dy, dz_ = ubx, uby, ubz
     n = 1
     if split:
         # smallest n with cos θ >= cos(n·thr), i.e. θ <= n·thr (tab is decreasing)
@@ -172,8 +191,8 @@ def _emit_edge(ax, ay, az, ra, bx, by, bz, rb, horizon, cos_thr, tab, xs, ys, m)
         else:
             scale = 1.0 / np.sqrt(0.5 * (1.0 + min(cos_theta, 1.0)))
         # Radial spike out of a (in traversal order a first).
-        xs[m] = scale * ax / ra
-        ys[m] = scale * ay / ra
+        xs[m] = scale * uax
+        ys[m] = scale * uay
         m += 1
     else:
         scale = 1.0
@@ -183,11 +202,9 @@ def _emit_edge(ax, ay, az, ra, bx, by, bz, rb, horizon, cos_thr, tab, xs, ys, m)
         gz = cx * dy - cy * dx
         g = np.sqrt(gx * gx + gy * gy + gz * gz)
         if g > 0.0:
-            # ĉ and ê = (g × c) / (|g| |c|), both unit; g = c × d is normal to the edge's plane.
-            ux = cx / rc
-            uy = cy / rc
-            ex = (gy * cz - gz * cy) / (g * rc)
-            ey = (gz * cx - gx * cz) / (g * rc)
+            # ĉ and ê = (g × ĉ) / |g|, both unit; g = ĉ × d̂ is normal to the edge's plane.
+            ex = (gy * cz - gz * cy) / g
+            ey = (gz * cx - gx * cz) / g
             cd = tab[1]
             sd = tab[0]
             ck = 1.0
@@ -195,26 +212,27 @@ def _emit_edge(ax, ay, az, ra, bx, by, bz, rb, horizon, cos_thr, tab, xs, ys, m)
             for k in range(1, n):
                 ck, sk = ck * cd - sk * sd, sk * cd + ck * sd
                 pos = m + (n - 1 - k if swap else k - 1)
-                xs[pos] = scale * (ck * ux + sk * ex)
-                ys[pos] = scale * (ck * uy + sk * ey)
+                xs[pos] = scale * (ck * cx + sk * ex)
+                ys[pos] = scale * (ck * cy + sk * ey)
             m += n - 1
     if horizon:
         # Radial spike back in to b (b itself is emitted by the next edge).
-        xs[m] = scale * bx / rb
-        ys[m] = scale * by / rb
+        xs[m] = scale * ubx
+        ys[m] = scale * uby
         m += 1
     return m
 
 
 @jit
-def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz, cos_thr, tab,
-                    cx, cy, cz, qx, qy, qz, qclip, xs, ys):
+def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, ux, uy, uz, hz,
+                    cos_thr, tab, cx, cy, cz, qx, qy, qz, qclip, wu, xs, ys):
     """Steps 2–5 for element ``e``: cull, clip at ``z = hz``, split edges, project.
 
-    ``lx, ly, lz : (V,) float64`` are the vertices in the shooter's local frame; ``cx, cy, cz
-    (5,)`` are scratch. On return ``qx, qy, qz, qclip (5,)`` hold the ``m`` clipped corners
-    (local frame; ``qclip`` marks points made by the horizon clip) and ``xs, ys`` the ``mm``
-    points of the projected polyline (eqs. 1–4).
+    ``lx, ly, lz : (V,) float64`` are the vertices in the shooter's local frame and ``ux, uy, uz``
+    their directions (:func:`unit_vectors`); ``cx, cy, cz (5,)`` and ``wu (3, 5)`` are scratch.
+    On return ``qx, qy, qz, qclip (5,)`` hold the ``m`` clipped corners (local frame; ``qclip``
+    marks points made by the horizon clip) and ``xs, ys`` the ``mm`` points of the projected
+    polyline (eqs. 1–4).
 
     Returns ``(m, mm, c)`` with ``c = n_e · (q - p) < 0`` for a front-facing element; ``mm = 0``
     when the element is culled (back-facing, at or below the horizon, degenerate after clip).
@@ -227,26 +245,33 @@ def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz, cos_t
     zmax = -np.inf
     zmin = np.inf
     for a in range(k):
-        vi = elem_verts[e, a]
-        cx[a] = lx[vi]
-        cy[a] = ly[vi]
-        cz[a] = lz[vi]
-        zmax = max(zmax, cz[a])
-        zmin = min(zmin, cz[a])
+        z = lz[elem_verts[e, a]]
+        zmax = max(zmax, z)
+        zmin = min(zmin, z)
     if zmax <= hz:
         return 0, 0, c
     # --- clip against z = hz (keep z > hz) ------------------------------------------------
     m = 0
     if zmin > hz:
+        # wholly above (the common case): the per-vertex directions as they are
         for a in range(k):
-            qx[a] = cx[a]
-            qy[a] = cy[a]
-            qz[a] = cz[a]
+            vi = elem_verts[e, a]
+            qx[a] = lx[vi]
+            qy[a] = ly[vi]
+            qz[a] = lz[vi]
             qclip[a] = False
+            wu[0, a] = ux[vi]
+            wu[1, a] = uy[vi]
+            wu[2, a] = uz[vi]
         m = k
     else:
         for a in range(k):
-            b = (a + 1) % k
+            vi = elem_verts[e, a]
+            cx[a] = lx[vi]
+            cy[a] = ly[vi]
+            cz[a] = lz[vi]
+        for a in range(k):
+            b = a + 1 if a + 1 < k else 0
             ina = cz[a] > hz
             if ina:
                 qx[m] = cx[a]
@@ -267,16 +292,17 @@ def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz, cos_t
                 qz[m] = hz
                 qclip[m] = True
                 m += 1
+        # kept corners get the bits of unit_vectors (same expression, same inputs)
+        for a in range(m):
+            wu[0, a], wu[1, a], wu[2, a] = unit(qx[a], qy[a], qz[a])
     if m < 3:
         return m, 0, c
     # --- projected polyline (eqs. 1–4) ----------------------------------------------------
-    # |q| once per corner (cz is free scratch now); the same expression for every element
-    for a in range(m):
-        cz[a] = np.sqrt(qx[a] * qx[a] + qy[a] * qy[a] + qz[a] * qz[a])
     mm = 0
     for a in range(m):
         b = a + 1 if a + 1 < m else 0
-        mm = _emit_edge(qx[a], qy[a], qz[a], cz[a], qx[b], qy[b], qz[b], cz[b],
+        mm = _emit_edge(qx[a], qy[a], qz[a], wu[0, a], wu[1, a], wu[2, a],
+                        qx[b], qy[b], qz[b], wu[0, b], wu[1, b], wu[2, b],
                         qclip[a] and qclip[b], cos_thr, tab, xs, ys, mm)
     return m, mm, c
 
@@ -490,8 +516,8 @@ def element_spheres(vertices, elem_verts):
 @jit
 def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, sctr, srad, hz,
            resolution, centre, dz, cos_thr, tab, plane_depth, want_f,
-           lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, gx, gy, gz, scr, qclip,
-           won, covered, visible, f):
+           lx, ly, lz, ux, uy, uz, item, zbuf, xs, ys, xcross, cnt, gx, gy, gz, scr, qclip,
+           wu, won, covered, visible, f):
     """One shot: fill ``won (E,)``, ``covered (E,)`` (int32) and ``visible (E,)`` (bool), all
     zeroed by the caller; ``gx, gy, gz (E,)``, ``scr (12, 5)`` and ``qclip (5,) bool`` are
     scratch.
@@ -508,6 +534,7 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, sctr, sr
     r = resolution
     half_r = 0.5 * r
     t1x, t1y, t1z, t2x, t2y, t2z = local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz)
+    unit_vectors(lx, ly, lz, ux, uy, uz)
     sdotn = snx * sx + sny * sy + snz * sz
     for k in range(r * r):
         item[k] = -1
@@ -528,8 +555,9 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, sctr, sr
         # bounding sphere at or below the horizon z = hz: no corner above it
         if snx * sctr[e, 0] + sny * sctr[e, 1] + snz * sctr[e, 2] - sdotn + srad[e] <= hz:
             continue
-        m, mm, c = project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz,
-                                   cos_thr, tab, cx, cy, cz, qx, qy, qz, qclip, xs, ys)
+        m, mm, c = project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, ux, uy,
+                                   uz, hz, cos_thr, tab, cx, cy, cz, qx, qy, qz, qclip, wu,
+                                   xs, ys)
         if m < 3:
             continue
         cov = 0
@@ -660,6 +688,10 @@ def _hemisphere_pass(points, normals, vertices, elem_verts, resolution, edge_ang
     lx = np.empty(n_vert)
     ly = np.empty(n_vert)
     lz = np.empty(n_vert)
+    ux = np.empty(n_vert)
+    uy = np.empty(n_vert)
+    uz = np.empty(n_vert)
+    wu = np.empty((3, 5))
     cap = edge_capacity(edge_angle)
     xs = np.empty(cap)
     ys = np.empty(cap)
@@ -682,8 +714,9 @@ def _hemisphere_pass(points, normals, vertices, elem_verts, resolution, edge_ang
         n_won = _shoot(points[s, 0], points[s, 1], points[s, 2],
                        normals[s, 0], normals[s, 1], normals[s, 2],
                        vertices, elem_verts, enrm, eoff, sctr, srad, hz, r, centre, dz,
-                       cos_thr, tab, plane_depth, want_f, lx, ly, lz, item, zbuf, xs, ys,
-                       xcross, cnt, gx, gy, gz, scr, qclip, won[s], covered[s], visible[s],
+                       cos_thr, tab, plane_depth, want_f, lx, ly, lz, ux, uy, uz, item, zbuf,
+                       xs, ys, xcross, cnt, gx, gy, gz, scr, qclip, wu, won[s], covered[s],
+                       visible[s],
                        f[row])
         closed[s] = n_won == n_disc
     return won, covered, n_disc, visible, f, closed
