@@ -12,7 +12,8 @@ from dataclasses import asdict, dataclass, replace
 class Settings:
     method: str = "hemisphere"          # form-factor method, a key of formfactor.METHODS
     resolution: int = 256               # item-buffer side R (hemisphere) / face side (hemicube)
-    edge_angle: float = 1.0             # degrees a projected edge piece may subtend (eq. 4)
+    edge_angle: float | None = None     # degrees per projected edge piece (eq. 4); None: auto
+                                        # (quarter-pixel sagitta, formfactor.auto_edge_angle)
     patch_size: float | None = None     # max patch edge length, scene units
     element_size: float | None = None   # max element edge length, scene units
     tolerance: float = 1e-3             # stop when RMS unshot / initial RMS unshot < tolerance
