@@ -79,7 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--height", type=_positive_int, help="image height")
     run.add_argument("--rdiff", type=_nonneg_float,
                      help="per-pixel pass threshold (eq. 9), in units of the scene's white "
-                          "level (default 0.05)")
+                          "level (default 0.1)")
     run.add_argument("--no-per-pixel", dest="per_pixel", action="store_const", const=False,
                      help="no per-pixel pass: Gouraud-interpolated direct light only")
     run.add_argument("--subdivide", type=_nonneg_float,

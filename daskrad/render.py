@@ -189,7 +189,7 @@ def perpixel_elements(elem_verts: np.ndarray, vertex_direct: np.ndarray,
     paper's colours are display values in ``[0, 1]``. Here radiance has the scene's units, so the
     colours are measured in units of the scene's white level, the 90th percentile of the
     vertices' brightest channel of ``vertex_total (V, 3)`` (robust to the few very bright
-    emitter vertices): ``Rdiff = 0.05`` is then a step of 5 % of a bright wall, whatever the
+    emitter vertices): ``Rdiff = 0.1`` is then a step of 10 % of a bright wall, whatever the
     scene's units. The spread tested is that of ``vertex_direct (V, 3)`` only: indirect light
     is interpolated anyway, so an element whose spread is indirect gains nothing from the pass.
     ``elem_verts (E, 4) int`` with ``-1`` for a triangle's fourth corner.
