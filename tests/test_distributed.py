@@ -178,6 +178,10 @@ def test_loopback_cluster_script_and_scheduler_option(reference, tmp_path):
         _wait_for(lambda: sched.is_file() and sched.stat().st_size > 0, 60, "the scheduler")
         address = json.loads(sched.read_text())["address"]
         assert address.startswith("tcp://127.0.0.1:")
+        from distributed import Client
+
+        with Client(address, timeout=60) as client:   # both worker processes have joined
+            client.wait_for_workers(2, timeout=60)
         settings = CASES["cornell"]
         args = ["--max-iterations", str(settings.max_iterations), "--width", "64",
                 "--height", "64", "-q", "--scheduler", address]

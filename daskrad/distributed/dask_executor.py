@@ -26,6 +26,9 @@ from daskrad.distributed import worker
 from daskrad.distributed.store import Store
 from daskrad.errors import OptionError
 
+#: Seconds between two counts of the cluster's workers.
+COUNT_SECONDS = 2.0
+
 #: Custom dashboard page module (``/daskrad``), added to the scheduler's HTTP routes.
 ROUTES_MODULE = "daskrad.distributed.dashboard"
 
@@ -73,7 +76,9 @@ class DaskExecutor:
             store = Store(Path(self._tmp) / "tasks.zarr")
         self.store = store
         self.run = uuid.uuid4().hex[:8]
-        self.workers = len(client.scheduler_info(n_workers=-1)["workers"])
+        self.workers = 0
+        self._counted = -float("inf")
+        self._count_workers()
         self.dashboard_link = _dashboard(client)
         self.stats = {"wait": 0.0, "tasks": 0}
         self._shoot = None                 # (generation, token) of the current geometry
@@ -89,6 +94,7 @@ class DaskExecutor:
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Batch:
         """Batch ``batch_no``, split into one task per worker so all of them work on it."""
         generation, token = self._shoot
+        self._count_workers()
         ids = np.asarray(patch_ids, np.int64)
         parts = np.array_split(ids, max(1, min(len(ids), self.workers)))
         futures = [
@@ -136,6 +142,14 @@ class DaskExecutor:
             shutil.rmtree(self._tmp, ignore_errors=True)
 
     # --- helpers ----------------------------------------------------------------------------
+
+    def _count_workers(self) -> None:
+        """Workers now in the cluster (they may join or leave mid-run), asked at most every
+        ``COUNT_SECONDS``. Only how a batch is split depends on it, never the result."""
+        now = time.monotonic()
+        if now - self._counted >= COUNT_SECONDS:
+            self.workers = len(self.client.scheduler_info(n_workers=-1)["workers"])
+            self._counted = now
 
     def _probe(self, kind: str, token: str) -> None:
         """Every worker must open the store: say clearly when a remote one cannot."""

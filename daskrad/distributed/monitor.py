@@ -59,11 +59,12 @@ class Watch:
     def __init__(self, store, executor, settings, h, title: str = "",
                  preview: Preview | None = None, then=None):
         self.store = store
+        self.executor = executor
         self.publish = getattr(executor, "publish", None) if executor.workers else None
         self.preview = preview if executor.dashboard_link else None
         self.every = max(1, settings.checkpoint_every)
         self.then = then
-        self.info = {"run": title, "workers": executor.workers, "elements": h.n_elements,
+        self.info = {"run": title, "elements": h.n_elements,
                      "patches": h.n_patches, "tolerance": settings.tolerance}
         self._sent = self._shown = -math.inf
         self.seconds = 0.0                   # client time spent here (benchmarks read it)
@@ -91,7 +92,8 @@ class Watch:
         step = max(1, math.ceil(len(hist) / CURVE_POINTS))
         thinned = [list(x) for x in hist[::step]] + ([list(hist[-1])] if hist else [])
         it, rms, sec = hist[-1] if hist else (sol.iteration, 1.0, sol.seconds)
-        self.publish("progress", {**self.info, "iteration": int(it),
+        self.publish("progress", {**self.info, "workers": self.executor.workers,
+                                  "iteration": int(it),
                                   "relative_unshot_rms": float(rms), "seconds": round(sec, 2),
                                   "converged": bool(sol.converged), "history": thinned})
         if self.preview is not None and (force or now - self._shown >= PREVIEW_SECONDS):
