@@ -65,7 +65,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("-o", "--output", help="output image OUT.exr (default: SCENE stem + .exr)")
     run.add_argument("--config", help="TOML sidecar (default: SCENE with .toml suffix, if any)")
     where = run.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=_nonneg_int, help="local worker processes (0: in-process)")
+    where.add_argument("--workers", type=_nonneg_int,
+                       help="local worker processes (0: in-process; default: in-process below "
+                            "~20k elements, else 2)")
     where.add_argument("--scheduler", help="address of an existing Dask scheduler, tcp://HOST:PORT")
     run.add_argument("--method", help="form-factor method (default: hemisphere)")
     run.add_argument("--resolution", type=_positive_int, help="item-buffer resolution R")
@@ -89,6 +91,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--area-samples", type=_positive_int,
                      help="shadow rays per area light: N x N (default 4)")
     run.add_argument("--mirror-depth", type=_nonneg_int, help="mirror bounces per pixel ray")
+    run.add_argument("--dashboard", metavar="HOST:PORT",
+                     help="where a LocalCluster's dashboard listens (default 127.0.0.1:8787)")
+    run.add_argument("--checkpoint-every", type=_positive_int,
+                     help="batches between checkpoints into OUT.zarr (default 8)")
     run.add_argument("--resume", action="store_true", help="continue from OUT.zarr's checkpoint")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     return parser
