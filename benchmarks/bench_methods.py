@@ -51,18 +51,15 @@ RAY_SAMPLES = (1, 2, 3, 4, 6, 8, 12)
 TARGETS = (0.05, 0.02, 0.01, 0.005)
 UP = np.array([0.0, 0.0, 1.0])
 ORIGIN = np.zeros(3)
-#: What each timed method does per shot beyond its algorithm (both share the rasterizer
-#: ``fill_polygon`` with its bounding-box reject, and allocate nothing per shot or element).
+#: What each timed method does per shot beyond its algorithm (all raster methods share the
+#: rasterizer ``fill_polygon`` and its edge table).
 OPTIMISATIONS = {
-    "hemisphere": "cull (back-face, bounding sphere below horizon); per-vertex directions once "
-                  "per shot; auto edge angle (quarter-pixel sagitta); Lambert only where won>0 "
-                  "or sub-pixel visible",
-    "hemisphere-itembuffer": "cull (back-face, bounding sphere); per-vertex directions; auto "
-                             "edge angle",
-    "hemisphere-scanline": "cull (back-face, bounding sphere); per-vertex directions; 1 deg "
-                           "edges (exact spans)",
-    "hemicube": "cull (back-face, bounding sphere); per-face outcode trivial reject/accept "
-                "before Sutherland-Hodgman",
+    "hemisphere": "cull (back-face, corners below horizon) before projecting; auto edge angle "
+                  "(quarter-pixel sagitta); Lambert for every facing element",
+    "hemisphere-itembuffer": "cull (back-face, corners below horizon); auto edge angle",
+    "hemisphere-scanline": "cull (back-face, corners below horizon); 1 deg edges (exact spans)",
+    "hemicube": "cull (back-face, bounding sphere below horizon); per-face outcode trivial "
+                "reject/accept before Sutherland-Hodgman; no per-shot allocation",
     "raycast": "voxel-grid shadow rays only for elements with Lambert > 0",
 }
 COLOURS = {"hemisphere": (200, 30, 30), "hemisphere-itembuffer": (240, 140, 0),

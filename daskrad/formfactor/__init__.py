@@ -54,7 +54,7 @@ from daskrad.errors import OptionError, SceneError
 from daskrad.kernels.geometry import scene_diagonal
 from daskrad.kernels.grid import build_grid
 from daskrad.kernels.hemicube import hemicube_shots
-from daskrad.kernels.hemisphere import hemisphere_factors, hemisphere_shots
+from daskrad.kernels.hemisphere import hemisphere_shots, hemisphere_visibility
 from daskrad.kernels.lambert import lambert_shots
 from daskrad.kernels.raycast import raycast_visibility
 from daskrad.kernels.scanline import scanline_shots
@@ -209,9 +209,11 @@ def hemisphere_rows(points, normals, vertices, elem_verts, resolution=256, **opt
     _check_options(options, ("edge_angle", "depth"))
     r, angle, plane = _raster_args(resolution, **options)
     points, normals, vertices, elem_verts = _prepare(points, normals, vertices, elem_verts)
-    rows, closed = hemisphere_factors(points, normals, vertices, elem_verts, r, angle, plane,
-                                      tolerances.HORIZON_EPS)
-    return _conserve(rows, closed)
+    won, covered, n_disc, visible = hemisphere_visibility(
+        points, normals, vertices, elem_verts, r, angle, plane, tolerances.HORIZON_EPS)
+    lam = lambert_shots(points, normals, vertices, elem_verts)
+    frac = np.where(covered > 0, won / np.maximum(covered, 1), visible)
+    return _conserve(lam * frac, won.sum(axis=1) == n_disc)
 
 
 def itembuffer_rows(points, normals, vertices, elem_verts, resolution=256, **options):

@@ -31,7 +31,7 @@ import numpy as np
 
 from daskrad.kernels._jit import jit
 from daskrad.kernels.geometry import element_planes, lex_less, scene_diagonal
-from daskrad.kernels.hemisphere import element_spheres, fill_polygon, local_frame
+from daskrad.kernels.hemisphere import fill_polygon, local_frame
 
 #: Face axes in the shooter's local frame: for each of the 5 faces, (index, sign) of the local
 #: coordinate giving ``a``, ``b`` and ``c``. Face 0 is the top; 1–4 the sides, whose ``b`` is the
@@ -43,6 +43,42 @@ _FACE_AXES = np.array([
     [[0, -1], [2, 1], [1, 1]],    # +y: a = -x, b = z, c = y
     [[0, 1], [2, 1], [1, -1]],    # -y: a = x, b = z, c = -y
 ], dtype=np.int64)
+
+
+@jit
+def element_spheres(vertices, elem_verts):
+    """Bounding sphere of every element, per call (it does not depend on the shooter).
+
+    Returns ``centre : (E, 3) float64`` (the mean of the corners) and ``radius : (E,) float64``
+    (the largest corner distance, rounded up by a relative 1e-12 so that the sphere test never
+    culls an element one of whose corners lies above the horizon).
+    """
+    n_elem = elem_verts.shape[0]
+    centre = np.empty((n_elem, 3))
+    radius = np.empty(n_elem)
+    for e in range(n_elem):
+        k = 4 if elem_verts[e, 3] >= 0 else 3
+        mx = 0.0
+        my = 0.0
+        mz = 0.0
+        for a in range(k):
+            vi = elem_verts[e, a]
+            mx += vertices[vi, 0]
+            my += vertices[vi, 1]
+            mz += vertices[vi, 2]
+        mx /= k
+        my /= k
+        mz /= k
+        r2 = 0.0
+        for a in range(k):
+            vi = elem_verts[e, a]
+            r2 = max(r2, (vertices[vi, 0] - mx) ** 2 + (vertices[vi, 1] - my) ** 2
+                     + (vertices[vi, 2] - mz) ** 2)
+        centre[e, 0] = mx
+        centre[e, 1] = my
+        centre[e, 2] = mz
+        radius[e] = np.sqrt(r2) * (1.0 + 1e-12) + 1e-300
+    return centre, radius
 
 
 @jit

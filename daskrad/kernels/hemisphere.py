@@ -67,7 +67,6 @@ import numpy as np
 
 from daskrad.kernels._jit import jit
 from daskrad.kernels.geometry import element_planes, lex_less, orthonormal_basis, scene_diagonal
-from daskrad.kernels.lambert import lambert_polygon
 
 
 @jit
@@ -120,33 +119,11 @@ def split_table(edge_angle):
 
 
 @jit
-def unit(x, y, z):
-    """``v / |v|``: the one expression every projection uses (eqs. 1–3), so a corner shared by
-    two elements, or projected once per vertex and once after a clip, gives the same bits."""
-    r = np.sqrt(x * x + y * y + z * z)
-    if not r > 0.0:
-        return 0.0, 0.0, 0.0  # the shooting point itself (on its own polygon): never projected
-    return x / r, y / r, z / r
-
-
-@jit
-def unit_vectors(lx, ly, lz, ux, uy, uz):
-    """Per-vertex directions :func:`unit` into ``ux, uy, uz (V,)``, once per shot (a vertex is
-    shared by about four elements); ``(ux, uy)`` is the vertex's point on the disc."""
-    for v in range(lx.shape[0]):
-        ux[v], uy[v], uz[v] = unit(lx[v], ly[v], lz[v])
-
-
-@jit
-def _emit_edge(ax, ay, az, uax, uay, uaz, bx, by, bz, ubx, uby, ubz, horizon, cos_thr, tab,
-               xs, ys, m):
+def _emit_edge(ax, ay, az, bx, by, bz, horizon, cos_thr, tab, xs, ys, m):
     """Append the projected polyline of the edge ``a → b`` (without ``b``) to ``xs, ys``.
 
-    ``a, b`` are the endpoints in the local frame (their lexicographic order picks the canonical
-    endpoint), ``ua, ub`` their directions :func:`unit` (computed by the same expression for
-    every element, so shared corners project to bit-identical points). Returns the new length.
-    ``horizon`` marks the edge made by the horizon clip, which is pushed out of the disc (see
-    the module docstring). ``tab`` is :func:`split_table`.
+    Returns the new length. ``horizon`` marks the edge made by the horizon clip, which is
+    pushed out of the disc (see the module docstring). ``tab`` is :func:`split_table`.
 
     The edge subtends ``θ`` at the origin; it is split into ``n = ceil(θ/thr)`` pieces (eq. 4):
     points at the angles ``k·thr`` (``k < n``) from the canonical endpoint ``c``, so every piece
@@ -156,21 +133,24 @@ def _emit_edge(ax, ay, az, uax, uay, uaz, bx, by, bz, ubx, uby, ubz, horizon, co
     projection (eqs. 1–3) is just its ``(x, y)``: no point on the edge, no square root per point;
     ``cos(k·thr), sin(k·thr)`` follow by the rotation recurrence (round-off ``~k ε``).
     """
-    xs[m] = uax
-    ys[m] = uay
+    ra = np.sqrt(ax * ax + ay * ay + az * az)
+    rb = np.sqrt(bx * bx + by * by + bz * bz)
+    xs[m] = ax / ra
+    ys[m] = ay / ra
     m += 1
-    cos_theta = uax * ubx + uay * uby + uaz * ubz  # symmetric in a, b: same for a neighbour
-    split = cos_theta < cos_thr
+    dot = ax * bx + ay * by + az * bz
+    split = dot < cos_thr * ra * rb
     if not split and not horizon:
         return m
     # Canonical endpoint first, so a neighbour traversing b → a computes identical points.
     swap = lex_less(bx, by, bz, ax, ay, az)
     if swap:
-        cx, cy, cz = ubx, uby, ubz
-        dx, dy, dz_ = uax, uay, uaz
+        cx, cy, cz, rc = bx, by, bz, rb
+        dx, dy, dz_ = ax, ay, az
     else:
-        cx, cy, cz = uax, uay, uaz
-        dx, dy, dz_ = ubx, uby, ubz
+        cx, cy, cz, rc = ax, ay, az, ra
+        dx, dy, dz_ = bx, by, bz
+    cos_theta = (cx * dx + cy * dy + cz * dz_) / (ra * rb)
     n = 1
     if split:
         # smallest n with cos θ >= cos(n·thr), i.e. θ <= n·thr (tab is decreasing)
@@ -191,8 +171,8 @@ def _emit_edge(ax, ay, az, uax, uay, uaz, bx, by, bz, ubx, uby, ubz, horizon, co
         else:
             scale = 1.0 / np.sqrt(0.5 * (1.0 + min(cos_theta, 1.0)))
         # Radial spike out of a (in traversal order a first).
-        xs[m] = scale * uax
-        ys[m] = scale * uay
+        xs[m] = scale * ax / ra
+        ys[m] = scale * ay / ra
         m += 1
     else:
         scale = 1.0
@@ -202,9 +182,11 @@ def _emit_edge(ax, ay, az, uax, uay, uaz, bx, by, bz, ubx, uby, ubz, horizon, co
         gz = cx * dy - cy * dx
         g = np.sqrt(gx * gx + gy * gy + gz * gz)
         if g > 0.0:
-            # ĉ and ê = (g × ĉ) / |g|, both unit; g = ĉ × d̂ is normal to the edge's plane.
-            ex = (gy * cz - gz * cy) / g
-            ey = (gz * cx - gx * cz) / g
+            # ĉ and ê = (g × c) / (|g| |c|), both unit; g = c × d is normal to the edge's plane.
+            ux = cx / rc
+            uy = cy / rc
+            ex = (gy * cz - gz * cy) / (g * rc)
+            ey = (gz * cx - gx * cz) / (g * rc)
             cd = tab[1]
             sd = tab[0]
             ck = 1.0
@@ -212,27 +194,38 @@ def _emit_edge(ax, ay, az, uax, uay, uaz, bx, by, bz, ubx, uby, ubz, horizon, co
             for k in range(1, n):
                 ck, sk = ck * cd - sk * sd, sk * cd + ck * sd
                 pos = m + (n - 1 - k if swap else k - 1)
-                xs[pos] = scale * (ck * cx + sk * ex)
-                ys[pos] = scale * (ck * cy + sk * ey)
+                xs[pos] = scale * (ck * ux + sk * ex)
+                ys[pos] = scale * (ck * uy + sk * ey)
             m += n - 1
     if horizon:
         # Radial spike back in to b (b itself is emitted by the next edge).
-        xs[m] = scale * ubx
-        ys[m] = scale * uby
+        xs[m] = scale * bx / rb
+        ys[m] = scale * by / rb
         m += 1
     return m
 
 
 @jit
-def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, ux, uy, uz, hz,
-                    cos_thr, tab, cx, cy, cz, qx, qy, qz, qclip, wu, xs, ys):
+def _faces(e, sx, sy, sz, elem_verts, enrm, eoff, lz, hz):
+    """Whether element ``e`` faces the point (one-sided) and reaches above ``z = hz``."""
+    if not eoff[e] - (enrm[e, 0] * sx + enrm[e, 1] * sy + enrm[e, 2] * sz) < 0.0:
+        return False
+    k = 4 if elem_verts[e, 3] >= 0 else 3
+    for a in range(k):
+        if lz[elem_verts[e, a]] > hz:
+            return True
+    return False
+
+
+@jit
+def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz, cos_thr, tab,
+                    cx, cy, cz, qx, qy, qz, qclip, xs, ys):
     """Steps 2–5 for element ``e``: cull, clip at ``z = hz``, split edges, project.
 
-    ``lx, ly, lz : (V,) float64`` are the vertices in the shooter's local frame and ``ux, uy, uz``
-    their directions (:func:`unit_vectors`); ``cx, cy, cz (5,)`` and ``wu (3, 5)`` are scratch.
-    On return ``qx, qy, qz, qclip (5,)`` hold the ``m`` clipped corners (local frame; ``qclip``
-    marks points made by the horizon clip) and ``xs, ys`` the ``mm`` points of the projected
-    polyline (eqs. 1–4).
+    ``lx, ly, lz : (V,) float64`` are the vertices in the shooter's local frame; ``cx, cy, cz
+    (4,)`` are scratch. On return ``qx, qy, qz, qclip (5,)`` hold the ``m`` clipped corners
+    (local frame; ``qclip`` marks points made by the horizon clip) and ``xs, ys`` the ``mm``
+    points of the projected polyline (eqs. 1–4).
 
     Returns ``(m, mm, c)`` with ``c = n_e · (q - p) < 0`` for a front-facing element; ``mm = 0``
     when the element is culled (back-facing, at or below the horizon, degenerate after clip).
@@ -245,33 +238,26 @@ def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, ux, uy, u
     zmax = -np.inf
     zmin = np.inf
     for a in range(k):
-        z = lz[elem_verts[e, a]]
-        zmax = max(zmax, z)
-        zmin = min(zmin, z)
+        vi = elem_verts[e, a]
+        cx[a] = lx[vi]
+        cy[a] = ly[vi]
+        cz[a] = lz[vi]
+        zmax = max(zmax, cz[a])
+        zmin = min(zmin, cz[a])
     if zmax <= hz:
         return 0, 0, c
     # --- clip against z = hz (keep z > hz) ------------------------------------------------
     m = 0
     if zmin > hz:
-        # wholly above (the common case): the per-vertex directions as they are
         for a in range(k):
-            vi = elem_verts[e, a]
-            qx[a] = lx[vi]
-            qy[a] = ly[vi]
-            qz[a] = lz[vi]
+            qx[a] = cx[a]
+            qy[a] = cy[a]
+            qz[a] = cz[a]
             qclip[a] = False
-            wu[0, a] = ux[vi]
-            wu[1, a] = uy[vi]
-            wu[2, a] = uz[vi]
         m = k
     else:
         for a in range(k):
-            vi = elem_verts[e, a]
-            cx[a] = lx[vi]
-            cy[a] = ly[vi]
-            cz[a] = lz[vi]
-        for a in range(k):
-            b = a + 1 if a + 1 < k else 0
+            b = (a + 1) % k
             ina = cz[a] > hz
             if ina:
                 qx[m] = cx[a]
@@ -292,17 +278,13 @@ def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, ux, uy, u
                 qz[m] = hz
                 qclip[m] = True
                 m += 1
-        # kept corners get the bits of unit_vectors (same expression, same inputs)
-        for a in range(m):
-            wu[0, a], wu[1, a], wu[2, a] = unit(qx[a], qy[a], qz[a])
     if m < 3:
         return m, 0, c
     # --- projected polyline (eqs. 1–4) ----------------------------------------------------
     mm = 0
     for a in range(m):
-        b = a + 1 if a + 1 < m else 0
-        mm = _emit_edge(qx[a], qy[a], qz[a], wu[0, a], wu[1, a], wu[2, a],
-                        qx[b], qy[b], qz[b], wu[0, b], wu[1, b], wu[2, b],
+        b = (a + 1) % m
+        mm = _emit_edge(qx[a], qy[a], qz[a], qx[b], qy[b], qz[b],
                         qclip[a] and qclip[b], cos_thr, tab, xs, ys, mm)
     return m, mm, c
 
@@ -356,22 +338,6 @@ def depth_coefficients(plane_depth, qx, qy, qz, m, nlx, nly, nlz, c):
 
 
 @jit
-def _holds_centre(lo, hi, cen, n, origin, inv_p):
-    """Whether a pixel centre ``cen[i]`` lies in ``[lo - w, hi + w]``, ``w = 1e-9 (hi - lo) +
-    1e-12`` (``cen[i] = origin + (i + 1/2) / inv_p``)."""
-    w = 1e-9 * (hi - lo) + 1e-12
-    lo -= w
-    hi += w
-    t = min(max((lo - origin) * inv_p - 0.5, 0.0), n - 1.0)  # clamped before int(): no overflow
-    i = int(np.ceil(t))
-    while i > 0 and cen[i - 1] >= lo:
-        i -= 1
-    while i < n and cen[i] < lo:
-        i += 1
-    return i < n and cen[i] <= hi
-
-
-@jit
 def fill_polygon(xs, ys, mm, e, xc, yc, ncol, nrow, x0, inv_px, y0, inv_py, mask,
                  da, db, dc, de, xcross, cnt, item, zbuf):
     """Even-odd scan conversion of the closed polyline ``xs, ys (mm,)`` into a z-buffer.
@@ -387,23 +353,11 @@ def fill_polygon(xs, ys, mm, e, xc, yc, ncol, nrow, x0, inv_px, y0, inv_py, mask
     cost is the number of segments plus crossings, not segments × rows. Returns the number of
     unmasked pixels covered.
     """
-    xmin = np.inf
-    xmax = -np.inf
     ymin = np.inf
     ymax = -np.inf
     for a in range(mm):
-        xmin = min(xmin, xs[a])
-        xmax = max(xmax, xs[a])
         ymin = min(ymin, ys[a])
         ymax = max(ymax, ys[a])
-    # Bounding-box reject: a covered centre lies in [min, max) on both axes. Only a box that
-    # holds no centre column or no centre row even when widened by 1e-9 of its size (far
-    # above the round-off of the crossings) is rejected, so the decision never differs from
-    # the exact half-open rules below.
-    if not _holds_centre(xmin, xmax, xc, ncol, x0, inv_px):
-        return 0
-    if not _holds_centre(ymin, ymax, yc, nrow, y0, inv_py):
-        return 0
     j0 = max(int(np.ceil((ymin - y0) * inv_py - 0.5)) - 1, 0)
     j1 = min(int(np.floor((ymax - y0) * inv_py - 0.5)) + 1, nrow - 1)
     if j0 > j1:
@@ -478,86 +432,31 @@ def local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz):
 
 
 @jit
-def element_spheres(vertices, elem_verts):
-    """Bounding sphere of every element, per call (it does not depend on the shooter).
-
-    Returns ``centre : (E, 3) float64`` (the mean of the corners) and ``radius : (E,) float64``
-    (the largest corner distance, rounded up by a relative 1e-12 so that the sphere test below
-    never culls an element one of whose corners lies above the horizon).
-    """
-    n_elem = elem_verts.shape[0]
-    centre = np.empty((n_elem, 3))
-    radius = np.empty(n_elem)
-    for e in range(n_elem):
-        k = 4 if elem_verts[e, 3] >= 0 else 3
-        mx = 0.0
-        my = 0.0
-        mz = 0.0
-        for a in range(k):
-            vi = elem_verts[e, a]
-            mx += vertices[vi, 0]
-            my += vertices[vi, 1]
-            mz += vertices[vi, 2]
-        mx /= k
-        my /= k
-        mz /= k
-        r2 = 0.0
-        for a in range(k):
-            vi = elem_verts[e, a]
-            r2 = max(r2, (vertices[vi, 0] - mx) ** 2 + (vertices[vi, 1] - my) ** 2
-                     + (vertices[vi, 2] - mz) ** 2)
-        centre[e, 0] = mx
-        centre[e, 1] = my
-        centre[e, 2] = mz
-        radius[e] = np.sqrt(r2) * (1.0 + 1e-12) + 1e-300
-    return centre, radius
-
-
-@jit
-def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, sctr, srad, hz,
-           resolution, centre, dz, cos_thr, tab, plane_depth, want_f,
-           lx, ly, lz, ux, uy, uz, item, zbuf, xs, ys, xcross, cnt, gx, gy, gz, scr, qclip,
-           wu, won, covered, visible, f):
+def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
+           resolution, centre, dz, cos_thr, tab, plane_depth,
+           lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, won, covered, visible, gx, gy, gz):
     """One shot: fill ``won (E,)``, ``covered (E,)`` (int32) and ``visible (E,)`` (bool), all
-    zeroed by the caller; ``gx, gy, gz (E,)``, ``scr (12, 5)`` and ``qclip (5,) bool`` are
-    scratch.
-
-    With ``want_f`` also the anti-aliased form factors into ``f (E,)`` (zeroed by the caller):
-    ``L · won/covered``, or ``L`` for a visible element too small to cover a pixel centre; Lambert's
-    ``L`` (:func:`daskrad.kernels.lambert.lambert_polygon`, in the local frame) is evaluated only
-    for the elements that won a pixel or passed that sub-pixel test, after the buffer is complete.
-    Returns the number of disc pixels won by some element (``n_disc``: a closed view).
-
-    Culling before any per-element work: back-facing (one dot product with the element's
-    plane) and bounding sphere at or below the horizon (one dot product), then the corners.
-    """
+    zeroed by the caller; ``gx, gy, gz (E,)`` are scratch."""
     r = resolution
     half_r = 0.5 * r
     t1x, t1y, t1z, t2x, t2y, t2z = local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz)
-    unit_vectors(lx, ly, lz, ux, uy, uz)
-    sdotn = snx * sx + sny * sy + snz * sz
     for k in range(r * r):
         item[k] = -1
         zbuf[k] = -np.inf
-    cx = scr[0]
-    cy = scr[1]
-    cz = scr[2]
-    qx = scr[3]
-    qy = scr[4]
-    qz = scr[5]
+    qx = np.empty(5)
+    qy = np.empty(5)
+    qz = np.empty(5)
+    qclip = np.zeros(5, dtype=np.bool_)
+    cx = np.empty(4)
+    cy = np.empty(4)
+    cz = np.empty(4)
     n_elem = elem_verts.shape[0]
     n_small = 0
     for e in range(n_elem):
-        # back-facing: p not strictly on the lit side (one-sided receiver)
-        c = eoff[e] - (enrm[e, 0] * sx + enrm[e, 1] * sy + enrm[e, 2] * sz)
-        if not c < 0.0:
-            continue
-        # bounding sphere at or below the horizon z = hz: no corner above it
-        if snx * sctr[e, 0] + sny * sctr[e, 1] + snz * sctr[e, 2] - sdotn + srad[e] <= hz:
-            continue
-        m, mm, c = project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, ux, uy,
-                                   uz, hz, cos_thr, tab, cx, cy, cz, qx, qy, qz, qclip, wu,
-                                   xs, ys)
+        if not _faces(e, sx, sy, sz, elem_verts, enrm, eoff, lz, hz):
+            continue  # culled here, before the call with many array arguments
+        m, mm, c = project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz,
+                                   cos_thr, tab, cx, cy, cz, qx, qy, qz, qclip, xs, ys)
         if m < 3:
             continue
         cov = 0
@@ -584,43 +483,16 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, sctr, sr
             gz[n_small] = mz
             covered[e] = -1 - n_small  # temporary marker: slot of the direction
             n_small += 1
-    n_won = 0
     for k in range(r * r):
         if item[k] >= 0:
             won[item[k]] += 1
-            n_won += 1
-    if n_small > 0:
-        _small_visibility(n_small, sx, sy, sz, snx, sny, snz, t1x, t1y, t1z, t2x, t2y, t2z,
-                          enrm, eoff, r, dz, item, gx, gy, gz, covered, visible)
-    if want_f:
-        for e in range(n_elem):
-            if won[e] > 0:
-                frac = won[e] / covered[e]
-            elif covered[e] == 0 and visible[e]:
-                frac = 1.0
-            else:
-                continue
-            k = 4 if elem_verts[e, 3] >= 0 else 3
-            for a in range(k):
-                vi = elem_verts[e, a]
-                cx[a] = lx[vi]
-                cy[a] = ly[vi]
-                cz[a] = lz[vi]
-            lam = lambert_polygon(cx, cy, cz, k, 0.0, 0.0, 1.0, scr[7], scr[8], scr[9], scr[10])
-            f[e] = lam * frac
-    return n_won
-
-
-@jit
-def _small_visibility(n_small, sx, sy, sz, snx, sny, snz, t1x, t1y, t1z, t2x, t2y, t2z,
-                      enrm, eoff, r, dz, item, gx, gy, gz, covered, visible):
-    """Elements that cover no pixel centre (``covered`` holds ``-1 - slot``): visible when no
-    other element's plane lies nearer along the direction of their centroid, at the pixel
-    nearest to it. Both nearnesses are exact (1/t along the same direction), also with
-    plane_depth, so a small element lying in the plane of the pixel's winner (a neighbour on
-    the same wall) ties and counts visible. Resets ``covered`` to 0 for them."""
-    half_r = 0.5 * r
-    for e in range(covered.shape[0]):
+    if n_small == 0:
+        return
+    # Elements that cover no pixel centre: visible when no other element's plane lies nearer
+    # along the direction of their centroid, at the pixel nearest to it. Both nearnesses are
+    # exact (1/t along the same direction), also with plane_depth, so a small element lying in
+    # the plane of the pixel's winner (a neighbour on the same wall) ties and counts visible.
+    for e in range(n_elem):
         if covered[e] >= 0:
             continue
         slot = -1 - covered[e]
@@ -671,15 +543,22 @@ def edge_capacity(edge_angle):
 
 
 @jit
-def _hemisphere_pass(points, normals, vertices, elem_verts, resolution, edge_angle,
-                     plane_depth, horizon_eps, want_f):
-    """Every shot of one call; buffers and per-element data are set up once per call."""
+def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edge_angle,
+                          plane_depth, horizon_eps):
+    """:func:`hemisphere_shots` plus ``visible : (S, E) bool``.
+
+    ``visible[s, e]`` is set only for elements that cover no pixel centre (``covered == 0``)
+    but reach above the horizon: whether the element is in front at the pixel nearest to the
+    direction of its centroid (see :func:`_shoot`). It lets the anti-aliased method give such
+    elements their analytic form factor instead of 0.
+
+    Returns ``(won, covered, n_disc, visible)``.
+    """
     n_shot = points.shape[0]
     n_elem = elem_verts.shape[0]
     n_vert = vertices.shape[0]
     r = resolution
     enrm, eoff = element_planes(vertices, elem_verts)
-    sctr, srad = element_spheres(vertices, elem_verts)
     hz = max(horizon_eps * scene_diagonal(vertices), 1e-300)
     centre, dz, n_disc = disc_pixels(r)
     # Buffers allocated once per call, reused by every shot and element.
@@ -688,10 +567,6 @@ def _hemisphere_pass(points, normals, vertices, elem_verts, resolution, edge_ang
     lx = np.empty(n_vert)
     ly = np.empty(n_vert)
     lz = np.empty(n_vert)
-    ux = np.empty(n_vert)
-    uy = np.empty(n_vert)
-    uz = np.empty(n_vert)
-    wu = np.empty((3, 5))
     cap = edge_capacity(edge_angle)
     xs = np.empty(cap)
     ys = np.empty(cap)
@@ -700,66 +575,18 @@ def _hemisphere_pass(points, normals, vertices, elem_verts, resolution, edge_ang
     gx = np.empty(n_elem)
     gy = np.empty(n_elem)
     gz = np.empty(n_elem)
-    scr = np.zeros((12, 5))
-    qclip = np.zeros(5, dtype=np.bool_)
     won = np.zeros((n_shot, n_elem), dtype=np.int32)
     covered = np.zeros((n_shot, n_elem), dtype=np.int32)
     visible = np.zeros((n_shot, n_elem), dtype=np.bool_)
-    f = np.zeros((n_shot if want_f else 1, n_elem))
-    closed = np.zeros(n_shot, dtype=np.bool_)
     cos_thr = np.cos(edge_angle)
     tab = split_table(edge_angle)
     for s in range(n_shot):
-        row = s if want_f else 0
-        n_won = _shoot(points[s, 0], points[s, 1], points[s, 2],
-                       normals[s, 0], normals[s, 1], normals[s, 2],
-                       vertices, elem_verts, enrm, eoff, sctr, srad, hz, r, centre, dz,
-                       cos_thr, tab, plane_depth, want_f, lx, ly, lz, ux, uy, uz, item, zbuf,
-                       xs, ys, xcross, cnt, gx, gy, gz, scr, qclip, wu, won[s], covered[s],
-                       visible[s],
-                       f[row])
-        closed[s] = n_won == n_disc
-    return won, covered, n_disc, visible, f, closed
-
-
-@jit
-def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edge_angle,
-                          plane_depth, horizon_eps):
-    """:func:`hemisphere_shots` plus ``visible : (S, E) bool``.
-
-    ``visible[s, e]`` is set only for elements that cover no pixel centre (``covered == 0``)
-    but reach above the horizon: whether the element is in front at the pixel nearest to the
-    direction of its centroid (see :func:`_small_visibility`). It lets the anti-aliased method
-    give such elements their analytic form factor instead of 0.
-
-    Returns ``(won, covered, n_disc, visible)``.
-    """
-    won, covered, n_disc, visible, _, _ = _hemisphere_pass(
-        points, normals, vertices, elem_verts, resolution, edge_angle, plane_depth,
-        horizon_eps, False)
+        _shoot(points[s, 0], points[s, 1], points[s, 2],
+               normals[s, 0], normals[s, 1], normals[s, 2],
+               vertices, elem_verts, enrm, eoff, hz, r, centre, dz, cos_thr, tab,
+               plane_depth, lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, won[s], covered[s],
+               visible[s], gx, gy, gz)
     return won, covered, n_disc, visible
-
-
-@jit
-def hemisphere_factors(points, normals, vertices, elem_verts, resolution, edge_angle,
-                       plane_depth, horizon_eps):
-    """Anti-aliased hemisphere-base form factors (the default method), fused in one pass.
-
-    ``F[s, e] = L · won / covered`` (``L`` for a visible element covering no pixel centre, 0
-    for a hidden one), with Lambert's ``L`` evaluated only where ``F`` can be nonzero
-    (:func:`_shoot`). Arguments as :func:`hemisphere_shots`.
-
-    Returns
-    -------
-    f : (S, E) float64
-        Before the conservation scaling of :func:`daskrad.formfactor.hemisphere_rows`.
-    closed : (S,) bool
-        Every disc pixel won by some element: a closed view, whose exact row sums to 1.
-    """
-    _, _, _, _, f, closed = _hemisphere_pass(points, normals, vertices, elem_verts,
-                                             resolution, edge_angle, plane_depth,
-                                             horizon_eps, True)
-    return f, closed
 
 
 @jit

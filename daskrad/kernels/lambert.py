@@ -20,74 +20,6 @@ from daskrad.kernels.geometry import element_planes, lex_less
 
 
 @jit
-def lambert_polygon(cx, cy, cz, k, nx, ny, nz, h, px_, py_, pz_):
-    """Lambert's formula for one polygon, corners ``c (k,)`` relative to the point ``p``.
-
-    ``n = (nx, ny, nz)`` is the point's unit normal; ``h, px_, py_, pz_`` are scratch of length
-    ``>= k + 1``. The polygon is clipped to ``n · c >= 0`` first (the formula holds only above
-    the tangent plane); the caller has already checked that the receiver faces ``p``. Returns
-    ``F >= 0``, 0 when the polygon lies wholly at or below the horizon.
-    """
-    hmax = -1.0
-    hmin = 1.0
-    for c in range(k):
-        h[c] = nx * cx[c] + ny * cy[c] + nz * cz[c]
-        hmax = max(hmax, h[c])
-        hmin = min(hmin, h[c])
-    if hmax <= 0.0:
-        return 0.0
-    # Sutherland–Hodgman against the tangent plane h = 0 (keep h >= 0).
-    m = 0
-    if hmin >= 0.0:
-        for c in range(k):
-            px_[c] = cx[c]
-            py_[c] = cy[c]
-            pz_[c] = cz[c]
-        m = k
-    else:
-        for c in range(k):
-            d = c + 1 if c + 1 < k else 0
-            if h[c] >= 0.0:
-                px_[m] = cx[c]
-                py_[m] = cy[c]
-                pz_[m] = cz[c]
-                m += 1
-            if (h[c] >= 0.0) != (h[d] >= 0.0):
-                # Interpolate from the canonical endpoint (bit-identical for the
-                # neighbour sharing this edge).
-                if lex_less(cx[c], cy[c], cz[c], cx[d], cy[d], cz[d]):
-                    a = c
-                    b = d
-                else:
-                    a = d
-                    b = c
-                t = h[a] / (h[a] - h[b])
-                px_[m] = cx[a] + t * (cx[b] - cx[a])
-                py_[m] = cy[a] + t * (cy[b] - cy[a])
-                pz_[m] = cz[a] + t * (cz[b] - cz[a])
-                m += 1
-    total = 0.0
-    for c in range(m):
-        d = c + 1 if c + 1 < m else 0
-        ax = px_[c]
-        ay = py_[c]
-        az = pz_[c]
-        bx = px_[d]
-        by = py_[d]
-        bz = pz_[d]
-        gx = ay * bz - az * by
-        gy = az * bx - ax * bz
-        gz = ax * by - ay * bx
-        g = np.sqrt(gx * gx + gy * gy + gz * gz)
-        if g == 0.0:
-            continue
-        # atan2 instead of acos: accurate for the tiny angles of small, far edges.
-        gamma = np.arctan2(g, ax * bx + ay * by + az * bz)
-        total += gamma * (nx * gx + ny * gy + nz * gz) / g
-    return abs(total) * (0.5 / np.pi)
-
-
-@jit
 def lambert_shots(points, normals, vertices, elem_verts):
     """Unoccluded form factor from every point to every element.
 
@@ -116,10 +48,11 @@ def lambert_shots(points, normals, vertices, elem_verts):
     cx = np.empty(4)
     cy = np.empty(4)
     cz = np.empty(4)
-    h = np.empty(5)
+    h = np.empty(4)
     px_ = np.empty(5)
     py_ = np.empty(5)
     pz_ = np.empty(5)
+    inv_2pi = 0.5 / np.pi
     for s in range(n_shot):
         sx = points[s, 0]
         sy = points[s, 1]
@@ -132,10 +65,65 @@ def lambert_shots(points, normals, vertices, elem_verts):
             if enrm[e, 0] * sx + enrm[e, 1] * sy + enrm[e, 2] * sz - eoff[e] <= 0.0:
                 continue
             k = 4 if elem_verts[e, 3] >= 0 else 3
+            hmax = -1.0
+            hmin = 1.0
             for c in range(k):
                 vi = elem_verts[e, c]
                 cx[c] = vertices[vi, 0] - sx
                 cy[c] = vertices[vi, 1] - sy
                 cz[c] = vertices[vi, 2] - sz
-            out[s, e] = lambert_polygon(cx, cy, cz, k, nx, ny, nz, h, px_, py_, pz_)
+                h[c] = nx * cx[c] + ny * cy[c] + nz * cz[c]
+                hmax = max(hmax, h[c])
+                hmin = min(hmin, h[c])
+            if hmax <= 0.0:
+                continue
+            # Sutherland–Hodgman against the tangent plane h = 0 (keep h >= 0).
+            m = 0
+            if hmin >= 0.0:
+                for c in range(k):
+                    px_[c] = cx[c]
+                    py_[c] = cy[c]
+                    pz_[c] = cz[c]
+                m = k
+            else:
+                for c in range(k):
+                    d = (c + 1) % k
+                    if h[c] >= 0.0:
+                        px_[m] = cx[c]
+                        py_[m] = cy[c]
+                        pz_[m] = cz[c]
+                        m += 1
+                    if (h[c] >= 0.0) != (h[d] >= 0.0):
+                        # Interpolate from the canonical endpoint (bit-identical for the
+                        # neighbour sharing this edge).
+                        if lex_less(cx[c], cy[c], cz[c], cx[d], cy[d], cz[d]):
+                            a = c
+                            b = d
+                        else:
+                            a = d
+                            b = c
+                        t = h[a] / (h[a] - h[b])
+                        px_[m] = cx[a] + t * (cx[b] - cx[a])
+                        py_[m] = cy[a] + t * (cy[b] - cy[a])
+                        pz_[m] = cz[a] + t * (cz[b] - cz[a])
+                        m += 1
+            total = 0.0
+            for c in range(m):
+                d = (c + 1) % m
+                ax = px_[c]
+                ay = py_[c]
+                az = pz_[c]
+                bx = px_[d]
+                by = py_[d]
+                bz = pz_[d]
+                gx = ay * bz - az * by
+                gy = az * bx - ax * bz
+                gz = ax * by - ay * bx
+                g = np.sqrt(gx * gx + gy * gy + gz * gz)
+                if g == 0.0:
+                    continue
+                # atan2 instead of acos: accurate for the tiny angles of small, far edges.
+                gamma = np.arctan2(g, ax * bx + ay * by + az * bz)
+                total += gamma * (nx * gx + ny * gy + nz * gz) / g
+            out[s, e] = abs(total) * inv_2pi
     return out

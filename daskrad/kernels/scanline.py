@@ -39,7 +39,6 @@ from daskrad.kernels.hemisphere import (
     local_frame,
     project_element,
     split_table,
-    unit_vectors,
 )
 
 
@@ -59,11 +58,6 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz, n_li
     ``transpose`` swaps the roles of ``x`` and ``y`` (vertical scanlines).
     """
     t1x, t1y, t1z, t2x, t2y, t2z = local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz)
-    ux = np.empty(lx.shape[0])
-    uy = np.empty(lx.shape[0])
-    uz = np.empty(lx.shape[0])
-    unit_vectors(lx, ly, lz, ux, uy, uz)
-    wu = np.empty((3, 5))
     yc = np.empty(n_lines)
     half_w = np.empty(n_lines)
     total = 0.0
@@ -82,14 +76,13 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz, n_li
     qy = np.empty(5)
     qz = np.empty(5)
     qclip = np.zeros(5, dtype=np.bool_)
-    cx = np.empty(5)
-    cy = np.empty(5)
-    cz = np.empty(5)
+    cx = np.empty(4)
+    cy = np.empty(4)
+    cz = np.empty(4)
     n_elem = elem_verts.shape[0]
     for e in range(n_elem):
-        m, mm, c = project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, ux, uy,
-                                   uz, hz, cos_thr, tab, cx, cy, cz, qx, qy, qz, qclip, wu,
-                                   xs, ys)
+        m, mm, c = project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz,
+                                   cos_thr, tab, cx, cy, cz, qx, qy, qz, qclip, xs, ys)
         if mm == 0:
             continue
         nlx = t1x * enrm[e, 0] + t1y * enrm[e, 1] + t1z * enrm[e, 2]
