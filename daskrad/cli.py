@@ -45,6 +45,16 @@ def _nonneg_float(text: str) -> float:
     return value
 
 
+def _area_method(text: str) -> str:
+    # the names live with the methods (daskrad.direct); imported only when the option is given
+    from daskrad.direct import AREA_METHODS
+
+    if text not in AREA_METHODS:
+        raise argparse.ArgumentTypeError(
+            f"unknown area-light method {text!r} (choose from {', '.join(sorted(AREA_METHODS))})")
+    return text
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="daskrad",
@@ -90,6 +100,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="shoot area lights like any patch instead of gathering them")
     run.add_argument("--area-samples", type=_positive_int,
                      help="shadow rays per area light: N x N (default 4)")
+    run.add_argument("--area-method", type=_area_method,
+                     help="area-light shadows at vertices: rays (Lambert x shadow rays) or "
+                          "hemisphere (the paper's window on the hemisphere base)")
     run.add_argument("--mirror-depth", type=_nonneg_int, help="mirror bounces per pixel ray")
     run.add_argument("--dashboard", metavar="HOST:PORT",
                      help="where a LocalCluster's dashboard listens (default 127.0.0.1:8787)")

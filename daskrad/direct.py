@@ -22,16 +22,24 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from daskrad import tolerances
+from daskrad.errors import OptionError
+from daskrad.kernels.arealight import area_irradiance
 from daskrad.kernels.direct import irradiance_points
 from daskrad.kernels.grid import Grid
 from daskrad.mesh.types import Hierarchy
 from daskrad.scene.types import Scene
+from daskrad.settings import Settings
 
 #: Shadow rays per area light (one emitting patch) are ``AREA_SAMPLES²``, stratified and
 #: jittered. 4 × 4 keeps the visible fraction's error near 1/16 in a penumbra and exact where
 #: the light is wholly visible or hidden, the only places a vertex value must be exact; the
 #: per-pixel pass uses the same count per pixel sample.
 AREA_SAMPLES = 4
+
+#: Side ``R`` of the ``R × R`` raster over an area light's window on the hemisphere base
+#: (the ``"hemisphere"`` area method, :mod:`daskrad.kernels.arealight`); set from
+#: ``benchmarks/bench_arealight.py`` (see :data:`AREA_METHODS`).
+AREA_RESOLUTION = 16
 
 #: Vertices per ``direct-<generation>-<n>`` task: ~2,000 vertices × (lights + 16 rays per
 #: emitting patch) is tens of milliseconds, well above Dask's ~2 ms per task.
@@ -59,7 +67,11 @@ class DirectContext:
         ``emitter_count (M,) int64``, ``emitter_normal (M, 3)``, ``emitter_radiance (M, 3)``
         (``Ke``), ``emitter_area (M,)``.
     samples : int
-        Shadow rays per area light: ``samples²``.
+        Shadow rays per area light: ``samples²`` (area method ``"rays"``).
+    area_method : str
+        A key of :data:`AREA_METHODS`: how area lights are shadowed.
+    area_resolution : int
+        Window raster side of the ``"hemisphere"`` area method.
     generation : int
         The hierarchy generation the vertices belong to (names the Dask tasks).
     """
@@ -80,6 +92,8 @@ class DirectContext:
     emitter_area: np.ndarray
     samples: int = AREA_SAMPLES
     generation: int = 0
+    area_method: str = Settings.area_method
+    area_resolution: int = AREA_RESOLUTION
 
     @property
     def light_args(self) -> tuple:
@@ -196,9 +210,18 @@ def has_lights(scene: Scene) -> bool:
                 or scene.emitting.any())
 
 
-def make_context(scene: Scene, h: Hierarchy, grid: Grid, samples: int = AREA_SAMPLES
+def make_context(scene: Scene, h: Hierarchy, grid: Grid, samples: int = AREA_SAMPLES,
+                 method: str | None = None, resolution: int = AREA_RESOLUTION
                  ) -> DirectContext:
-    """The direct-light context of ``h`` (its vertices) lit by ``scene``'s lights."""
+    """The direct-light context of ``h`` (its vertices) lit by ``scene``'s lights.
+
+    ``method`` is a key of :data:`AREA_METHODS` (default: ``Settings.area_method``), with
+    ``samples²`` shadow rays (``"rays"``) or an ``resolution²`` window raster
+    (``"hemisphere"``) per area light. An unknown name raises :class:`OptionError`.
+    """
+    method = check_area_method(Settings.area_method if method is None else method)
+    if int(resolution) < 2:
+        raise OptionError(f"area-light window resolution must be >= 2, got {resolution!r}")
     pl, dl = scene.point_lights, scene.directional_lights
     ddir = np.asarray(dl.direction, np.float64).reshape(-1, 3)
     norm = np.linalg.norm(ddir, axis=1, keepdims=True)
@@ -215,6 +238,8 @@ def make_context(scene: Scene, h: Hierarchy, grid: Grid, samples: int = AREA_SAM
         dir_irradiance=np.ascontiguousarray(dl.irradiance, np.float64).reshape(-1, 3),
         samples=int(samples),
         generation=h.generation,
+        area_method=method,
+        area_resolution=int(resolution),
         **emitters(scene, h),
     )
 
@@ -230,12 +255,65 @@ def direct_vertices(ctx: DirectContext, start: int, stop: int) -> np.ndarray:
     """``(stop − start, 3) float64``: direct irradiance ``H`` at vertices ``start:stop``.
 
     The Dask task ``direct-<generation>-<n>``. Each vertex's value depends only on the context
-    and its id (the jitter seed), never on the range it was computed in.
+    and its id (the jitter seed), never on the range it was computed in. Area lights are
+    shadowed by ``AREA_METHODS[ctx.area_method]``.
     """
+    return AREA_METHODS[ctx.area_method](ctx, start, stop)
+
+
+def _area_by_rays(ctx: DirectContext, start: int, stop: int) -> np.ndarray:
+    """Every light by shadow rays; area lights: Lambert × ``samples²`` stratified rays."""
     seeds = np.arange(start, stop, dtype=np.int64)
     return irradiance_points(ctx.grid, ctx.points[start:stop], ctx.area_points[start:stop],
                              ctx.normals[start:stop], seeds,
                              ctx.offset, *ctx.light_args, ctx.samples)
+
+
+def _area_by_hemisphere(ctx: DirectContext, start: int, stop: int) -> np.ndarray:
+    """Point and directional lights by shadow rays; area lights by the paper's window on the
+    hemisphere base (:mod:`daskrad.kernels.arealight`): Lambert × visible pixel fraction."""
+    seeds = np.arange(start, stop, dtype=np.int64)
+    none3 = np.zeros((0, 3))
+    H = irradiance_points(ctx.grid, ctx.points[start:stop], ctx.area_points[start:stop],
+                          ctx.normals[start:stop], seeds, ctx.offset, ctx.point_position,
+                          ctx.point_intensity, ctx.dir_direction, ctx.dir_irradiance,
+                          np.zeros((0, 4, 3)), np.zeros(0, np.int64), none3, none3,
+                          np.zeros(0), ctx.samples)
+    if len(ctx.emitter_corners):
+        # The clip height of the hemisphere-base form factor, HORIZON_EPS · diag (the offset
+        # is RAY_OFFSET · diag of the same box).
+        hz = ctx.offset * (tolerances.HORIZON_EPS / tolerances.RAY_OFFSET)
+        H += area_irradiance(ctx.grid, ctx.area_points[start:stop], ctx.normals[start:stop],
+                             float(ctx.offset), float(hz), ctx.emitter_corners,
+                             ctx.emitter_count, ctx.emitter_normal, ctx.emitter_radiance,
+                             int(ctx.area_resolution),
+                             math.radians(tolerances.EDGE_ANGLE_DEG))
+    return H
+
+
+#: How area lights are shadowed at vertices, by name (``--area-method``,
+#: ``Settings.area_method``).
+#: Each entry maps ``(ctx, start, stop)`` to the direct irradiance ``(stop − start, 3)`` of every
+#: light at those vertices; point and directional lights are shadow rays in both.
+#:
+#: - ``"rays"``: Lambert's unoccluded term × the visible fraction from ``samples²`` stratified,
+#:   jittered shadow rays weighted by ``cos θ cos θ' / r²``.
+#: - ``"hemisphere"`` (the paper's method): Lambert's term × the fraction of the light's pixels
+#:   left visible in an ``R × R`` z-buffer over the light's min–max window on the hemisphere
+#:   base, with the occluders the voxel grid finds inside the pyramid from the vertex to the
+#:   light.
+#:
+#: Both are exact where the light is wholly visible or wholly hidden.
+#: The default is chosen by ``benchmarks/bench_arealight.py``: PLACEHOLDER.
+AREA_METHODS = {"rays": _area_by_rays, "hemisphere": _area_by_hemisphere}
+
+
+def check_area_method(name: str) -> str:
+    """``name`` if it is a key of :data:`AREA_METHODS`, else :class:`OptionError`."""
+    if name not in AREA_METHODS:
+        raise OptionError(f"unknown area-light method {name!r} "
+                          f"(choose from {', '.join(sorted(AREA_METHODS))})")
+    return name
 
 
 def batches(start: int, stop: int, size: int = BATCH_VERTICES) -> list[tuple[int, int]]:

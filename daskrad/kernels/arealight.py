@@ -1,0 +1,465 @@
+"""Area lights by the paper's method: the light's window on the hemisphere base (issue 5, item 1).
+
+From a point ``p`` with unit normal ``n`` (an element vertex), an area light (an emitting convex
+polygon, one-sided along its normal) gives the irradiance
+
+    ``H = π Le F · V``,
+
+``F`` Lambert's unoccluded point-to-polygon form factor (exact; the same
+:func:`daskrad.kernels.direct.lambert_polygon` the shadow-ray method uses, so the unoccluded
+answer is the same bits for both methods) and ``V`` the visible fraction of the light. By
+Nusselt's analog (DESIGN §2) ``F`` is the area of the light's projection onto the base disc of
+the unit hemisphere over ``p``, over ``π``; and every point of the disc carries the same weight,
+so ``V`` is the fraction of the light's projected area that no occluder covers. The paper
+measures it on the disc, but only where the light is:
+
+1. Candidate occluders through the voxel grid: the triangles registered in the cells of the
+   bounding box of the pyramid ``{eye} ∪ light`` that cross the pyramid (a cell wholly outside
+   one of its face planes is skipped), kept when no face plane of the pyramid separates them
+   and they reach above the horizon and in front of the light. With no candidate, ``V = 1``
+   and nothing is rasterized (the common case in open parts of a scene).
+2. Project the light onto the disc exactly as the hemisphere-base form factor projects an
+   element (:func:`daskrad.kernels.hemisphere.project_element`: horizon clip, edges split into
+   pieces of at most ``edge_angle`` as seen from ``p``, eqs. 1–4), and take the min–max
+   **window** of its projected outline.
+3. Rasterize only that window, ``R × R`` pixels stretched over it (the same relative accuracy
+   for a light that fills half the sky and one that is a speck): the light first, into a
+   z-buffer with the exact depth (``1/t`` along the pixel's direction), then every candidate
+   (:func:`daskrad.kernels.hemisphere.fill_polygon`), only on the light's pixels. An occluder
+   hides a pixel when it is nearer than the light by more than ``off``, the same rule as a shadow
+   ray's ``tmax = 1 − off/|d|``, so the light's own triangles and the ceiling around it (coplanar
+   with it) never shadow it.
+4. ``V = (light pixels not hidden) / (light pixels)``: each pixel of the window has the same
+   area on the disc, hence the same projected solid angle (eqs. 6–7 restricted to the window).
+
+Occluders are two-sided (the grid's triangles carry no orientation, and a shadow ray is blocked
+by either side), so a triangle is oriented towards the eye before it is projected. The eye is
+``p + off · n``, the shadow rays' origin: the receiver's own polygon lies ``off`` below it and
+is clipped away at the horizon, and a wall meeting the floor at ``p`` projects onto the rim
+half of the disc away from the room, never onto a light inside the room.
+
+Accuracy: a pixel whose square the outline of the light or of its visible part does not cross
+is counted exactly, so ``|V_raster − V| <= (B_vis + V B_light) / N_light`` with ``B`` the pixels
+an outline crosses (at most ``4R + 4`` for a convex outline in an ``R × R`` window) and
+``N_light`` the light's pixels (about ``R²`` times the fill of its window). In practice the
+per-row errors cancel and the error is far below that bound (tests/test_arealight.py,
+benchmarks/bench_arealight.py).
+
+Each point's value depends only on the point and the scene, never on the batch it is computed
+in: the result has the same bits for any batching and any number of workers.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from daskrad.kernels._jit import jit
+from daskrad.kernels.direct import lambert_polygon
+from daskrad.kernels.geometry import orthonormal_basis
+from daskrad.kernels.grid import any_hit_one
+from daskrad.kernels.hemisphere import (
+    depth_coefficients,
+    edge_capacity,
+    fill_polygon,
+    project_element,
+    split_table,
+)
+
+
+@jit
+def _pyramid(ex, ey, ez, corners, count, en, off, planes):
+    """The face planes of the pyramid from the eye ``e`` to the light ``corners[:count]``.
+
+    ``planes (5, 5)``: rows ``a < count`` are the side planes through ``e`` and the light's
+    edge ``a → a+1``, as ``(kx, ky, kz, kd, slack)`` with ``k · x − kd >= −slack`` inside
+    (``slack = off |k|``: a point within ``off`` of the pyramid counts as inside); a row with
+    ``k = 0`` (the eye in the plane of an edge and the centroid) never rejects. Row ``count``
+    is the light's plane, ``en · x − en · c0``, positive on the eye's side.
+    """
+    gx = 0.0
+    gy = 0.0
+    gz = 0.0
+    for a in range(count):
+        gx += corners[a, 0]
+        gy += corners[a, 1]
+        gz += corners[a, 2]
+    gx /= count
+    gy /= count
+    gz /= count
+    for a in range(count):
+        b = a + 1 if a + 1 < count else 0
+        ax = corners[a, 0] - ex
+        ay = corners[a, 1] - ey
+        az = corners[a, 2] - ez
+        bx = corners[b, 0] - ex
+        by = corners[b, 1] - ey
+        bz = corners[b, 2] - ez
+        kx = ay * bz - az * by
+        ky = az * bx - ax * bz
+        kz = ax * by - ay * bx
+        kd = kx * ex + ky * ey + kz * ez
+        s = kx * gx + ky * gy + kz * gz - kd
+        if s < 0.0:
+            kx, ky, kz, kd = -kx, -ky, -kz, -kd
+        elif not s > 0.0:
+            kx, ky, kz, kd = 0.0, 0.0, 0.0, -1.0  # 0 − (−1) = 1 > 0: never rejects
+        planes[a, 0] = kx
+        planes[a, 1] = ky
+        planes[a, 2] = kz
+        planes[a, 3] = kd
+        planes[a, 4] = off * np.sqrt(kx * kx + ky * ky + kz * kz)
+    planes[count, 0] = en[0]
+    planes[count, 1] = en[1]
+    planes[count, 2] = en[2]
+    planes[count, 3] = en[0] * corners[0, 0] + en[1] * corners[0, 1] + en[2] * corners[0, 2]
+    planes[count, 4] = off
+
+
+@jit
+def _cell_range(lo, hi, origin, cell, n):
+    """First and last cell along one axis that ``[lo, hi]`` touches (clamped to the grid)."""
+    a = int(np.floor(min(max((lo - origin) / cell, -1.0), n + 1.0)))
+    b = int(np.floor(min(max((hi - origin) / cell, -1.0), n + 1.0)))
+    return max(0, min(n - 1, a)), max(0, min(n - 1, b))
+
+
+@jit
+def _candidates(grid, ex, ey, ez, nx, ny, nz, corners, count, planes, hz, off, stamp, sid,
+                cand):
+    """Triangles that may hide part of the light from the eye, into ``cand``; returns how many.
+
+    A triangle intersecting the pyramid has a point ``x`` inside it (within ``off``); ``x``
+    lies in some cell, in whose list the grid registered the triangle, and that cell is not
+    rejected (its corner farthest inside each plane is at least as far inside as ``x``). So
+    walking the cells of the pyramid's bounding box that no plane rejects finds every such
+    triangle; ``stamp (T,)`` (``== sid`` once seen for this light and point) drops repeats.
+    """
+    npl = count + 1
+    lox = ex
+    hix = ex
+    loy = ey
+    hiy = ey
+    loz = ez
+    hiz = ez
+    for a in range(count):
+        lox = min(lox, corners[a, 0])
+        hix = max(hix, corners[a, 0])
+        loy = min(loy, corners[a, 1])
+        hiy = max(hiy, corners[a, 1])
+        loz = min(loz, corners[a, 2])
+        hiz = max(hiz, corners[a, 2])
+    origin, cell, dims = grid.origin, grid.cell, grid.dims
+    i0, i1 = _cell_range(lox - off, hix + off, origin[0], cell[0], dims[0])
+    j0, j1 = _cell_range(loy - off, hiy + off, origin[1], cell[1], dims[1])
+    k0, k1 = _cell_range(loz - off, hiz + off, origin[2], cell[2], dims[2])
+    hx = 0.5 * cell[0]
+    hy = 0.5 * cell[1]
+    hzc = 0.5 * cell[2]
+    tris = grid.triangles
+    n_c = 0
+    for k in range(k0, k1 + 1):
+        cz = origin[2] + (k + 0.5) * cell[2]
+        for j in range(j0, j1 + 1):
+            cy = origin[1] + (j + 0.5) * cell[1]
+            for i in range(i0, i1 + 1):
+                cx = origin[0] + (i + 0.5) * cell[0]
+                out = False
+                for a in range(npl):
+                    kx = planes[a, 0]
+                    ky = planes[a, 1]
+                    kz = planes[a, 2]
+                    far = (kx * cx + ky * cy + kz * cz - planes[a, 3]
+                           + abs(kx) * hx + abs(ky) * hy + abs(kz) * hzc)
+                    if far < -planes[a, 4]:
+                        out = True
+                        break
+                if out:
+                    continue
+                c = (k * dims[1] + j) * dims[0] + i
+                for q in range(grid.cell_start[c], grid.cell_start[c + 1]):
+                    t = grid.cell_items[q]
+                    if stamp[t] == sid:
+                        continue
+                    stamp[t] = sid
+                    # above the eye's horizon somewhere (else it is clipped away entirely)
+                    up = -np.inf
+                    for v in range(3):
+                        up = max(up, nx * (tris[t, v, 0] - ex) + ny * (tris[t, v, 1] - ey)
+                                 + nz * (tris[t, v, 2] - ez))
+                    if up <= hz:
+                        continue
+                    # no side plane separates it; in front of the light by more than off
+                    keep = True
+                    for a in range(npl):
+                        kx = planes[a, 0]
+                        ky = planes[a, 1]
+                        kz = planes[a, 2]
+                        best = -np.inf
+                        for v in range(3):
+                            best = max(best, kx * tris[t, v, 0] + ky * tris[t, v, 1]
+                                       + kz * tris[t, v, 2] - planes[a, 3])
+                        if (a < count and best < -planes[a, 4]) or (a == count and best <= off):
+                            keep = False
+                            break
+                    if keep:
+                        cand[n_c] = t
+                        n_c += 1
+    return n_c
+
+
+@jit
+def _centroid_ray(grid, ex, ey, ez, corners, count, off):
+    """Visibility ``0.0``/``1.0`` of the light's centroid by one shadow ray from the eye: the
+    fallback for a light too thin to hold a pixel centre of its own window."""
+    o = np.empty(3)
+    d = np.empty(3)
+    o[0] = ex
+    o[1] = ey
+    o[2] = ez
+    for k in range(3):
+        s = 0.0
+        for a in range(count):
+            s += corners[a, k]
+        d[k] = s / count - o[k]
+    dl = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    if not dl > 2.0 * off:
+        return 1.0
+    return 0.0 if any_hit_one(grid, o, d, off / dl, 1.0 - off / dl) else 1.0
+
+
+@jit
+def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_thr, tab,
+                     planes, stamp, sid, cand, lx, ly, lz, ev, enrm, eoff, scr, qclip, xs, ys,
+                     xcross, cnt, item, zbuf, mask, xc, yc):
+    """``(V, n_candidates)``: the visible fraction of one light from ``p`` (module docstring).
+
+    ``corners (count, 3)`` is the light, ``en (3,)`` its unit emitting normal (``p`` must lie
+    on that side); ``hz`` the horizon clip height; ``resolution`` the window side ``R``;
+    ``cos_thr, tab`` the edge splitting of :func:`daskrad.kernels.hemisphere.split_table`.
+    The rest are scratch buffers sized by :func:`area_irradiance_stats`; ``sid`` must differ
+    from every value in ``stamp`` (a fresh id per call).
+    """
+    r = resolution
+    ex = p[0] + off * n[0]
+    ey = p[1] + off * n[1]
+    ez = p[2] + off * n[2]
+    _pyramid(ex, ey, ez, corners, count, en, off, planes)
+    n_c = _candidates(grid, ex, ey, ez, n[0], n[1], n[2], corners, count, planes, hz, off,
+                      stamp, sid, cand)
+    if n_c == 0:
+        return 1.0, 0
+    t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(n[0], n[1], n[2])
+    cx = scr[0]
+    cy = scr[1]
+    cz = scr[2]
+    qx = scr[3]
+    qy = scr[4]
+    qz = scr[5]
+    # ---- the light, projected like any element (eqs. 1–4)
+    for a in range(count):
+        wx = corners[a, 0] - ex
+        wy = corners[a, 1] - ey
+        wz = corners[a, 2] - ez
+        lx[a] = t1x * wx + t1y * wy + t1z * wz
+        ly[a] = t2x * wx + t2y * wy + t2z * wz
+        lz[a] = n[0] * wx + n[1] * wy + n[2] * wz
+    for a in range(4):
+        ev[0, a] = a if a < count else -1
+    enrm[0, 0] = en[0]
+    enrm[0, 1] = en[1]
+    enrm[0, 2] = en[2]
+    eoff[0] = en[0] * corners[0, 0] + en[1] * corners[0, 1] + en[2] * corners[0, 2]
+    m, mm, c = project_element(0, ex, ey, ez, ev, enrm, eoff, lx, ly, lz, hz, cos_thr, tab,
+                               cx, cy, cz, qx, qy, qz, qclip, xs, ys)
+    if mm == 0:
+        # at most ``off`` above the eye's horizon (F is round-off there): nothing to measure
+        return 1.0, n_c
+    # ---- the window: min–max of the projected outline, inside [-1, 1]²
+    x0 = np.inf
+    x1 = -np.inf
+    y0 = np.inf
+    y1 = -np.inf
+    for a in range(mm):
+        x0 = min(x0, xs[a])
+        x1 = max(x1, xs[a])
+        y0 = min(y0, ys[a])
+        y1 = max(y1, ys[a])
+    x0 = max(x0, -1.0)
+    y0 = max(y0, -1.0)
+    x1 = min(x1, 1.0)
+    y1 = min(y1, 1.0)
+    if not (x1 - x0 > 1e-12 and y1 - y0 > 1e-12):
+        return _centroid_ray(grid, ex, ey, ez, corners, count, off), n_c
+    inv_px = r / (x1 - x0)
+    inv_py = r / (y1 - y0)
+    for i in range(r):
+        xc[i] = x0 + (i + 0.5) / inv_px
+        yc[i] = y0 + (i + 0.5) / inv_py
+    for j in range(r):
+        for i in range(r):
+            q = 1.0 - xc[i] * xc[i] - yc[j] * yc[j]
+            mask[j * r + i] = np.sqrt(q) if q > 0.0 else -1.0
+            item[j * r + i] = -1
+            zbuf[j * r + i] = -np.inf
+    nlx = t1x * en[0] + t1y * en[1] + t1z * en[2]
+    nly = t2x * en[0] + t2y * en[1] + t2z * en[2]
+    nlz = n[0] * en[0] + n[1] * en[1] + n[2] * en[2]
+    da, db, dc, de = depth_coefficients(False, qx, qy, qz, m, nlx, nly, nlz, c)
+    n_light = fill_polygon(xs, ys, mm, 0, xc, yc, r, r, x0, inv_px, y0, inv_py, mask,
+                           da, db, dc, de, xcross, cnt, item, zbuf)
+    if n_light == 0:
+        return _centroid_ray(grid, ex, ey, ez, corners, count, off), n_c
+    # Only the light's pixels matter: mask the rest out, and pull the light ``off`` nearer
+    # (an occluder must be nearer than t_light − off to hide it, as a shadow ray's tmax).
+    for idx in range(r * r):
+        if item[idx] < 0:
+            mask[idx] = -1.0
+        else:
+            near = zbuf[idx]
+            zbuf[idx] = near / (1.0 - off * near) if off * near < 1.0 else np.inf
+    # ---- the occluders, two-sided: oriented towards the eye
+    tris = grid.triangles
+    ev[0, 3] = -1
+    for s in range(n_c):
+        t = cand[s]
+        for a in range(3):
+            wx = tris[t, a, 0] - ex
+            wy = tris[t, a, 1] - ey
+            wz = tris[t, a, 2] - ez
+            lx[a] = t1x * wx + t1y * wy + t1z * wz
+            ly[a] = t2x * wx + t2y * wy + t2z * wz
+            lz[a] = n[0] * wx + n[1] * wy + n[2] * wz
+        ax = tris[t, 1, 0] - tris[t, 0, 0]
+        ay = tris[t, 1, 1] - tris[t, 0, 1]
+        az = tris[t, 1, 2] - tris[t, 0, 2]
+        bx = tris[t, 2, 0] - tris[t, 0, 0]
+        by = tris[t, 2, 1] - tris[t, 0, 1]
+        bz = tris[t, 2, 2] - tris[t, 0, 2]
+        gx = ay * bz - az * by
+        gy = az * bx - ax * bz
+        gz = ax * by - ay * bx
+        g = np.sqrt(gx * gx + gy * gy + gz * gz)
+        if not g > 0.0:
+            continue
+        gx /= g
+        gy /= g
+        gz /= g
+        go = gx * tris[t, 0, 0] + gy * tris[t, 0, 1] + gz * tris[t, 0, 2]
+        side = go - (gx * ex + gy * ey + gz * ez)
+        if side > 0.0:
+            gx, gy, gz, go = -gx, -gy, -gz, -go
+        elif not side < 0.0:
+            continue  # the eye in its plane: seen edge-on, it covers nothing
+        enrm[0, 0] = gx
+        enrm[0, 1] = gy
+        enrm[0, 2] = gz
+        eoff[0] = go
+        m, mm, c = project_element(0, ex, ey, ez, ev, enrm, eoff, lx, ly, lz, hz, cos_thr,
+                                   tab, cx, cy, cz, qx, qy, qz, qclip, xs, ys)
+        if mm == 0:
+            continue
+        nlx = t1x * gx + t1y * gy + t1z * gz
+        nly = t2x * gx + t2y * gy + t2z * gz
+        nlz = n[0] * gx + n[1] * gy + n[2] * gz
+        da, db, dc, de = depth_coefficients(False, qx, qy, qz, m, nlx, nly, nlz, c)
+        fill_polygon(xs, ys, mm, 1, xc, yc, r, r, x0, inv_px, y0, inv_py, mask,
+                     da, db, dc, de, xcross, cnt, item, zbuf)
+    n_vis = 0
+    for idx in range(r * r):
+        if item[idx] == 0:
+            n_vis += 1
+    return n_vis / n_light, n_c
+
+
+@jit
+def area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count, em_normal,
+                          em_radiance, resolution, edge_angle):
+    """Irradiance from the area lights at ``points`` by the window method, and its work.
+
+    Parameters
+    ----------
+    grid : daskrad.kernels.grid.Grid
+        Voxel grid over every triangle of the scene (the occluders).
+    points, normals : (n, 3) float64
+        Where (for a vertex: moved a hair into its polygon) and the unit normal of the lit
+        side.
+    off : float
+        Shadow offset, an absolute length: the eye sits ``off`` above the point, and an
+        occluder must be nearer than the light by more than ``off``.
+    hz : float
+        Horizon clip height above the eye (absolute length, ``HORIZON_EPS · diag``).
+    em_corners : (M, 4, 3) float64
+        Emitting polygons (row 3 unused for a triangle); ``em_count (M,) int64`` corners,
+        ``em_normal (M, 3)`` unit emitting side, ``em_radiance (M, 3)`` ``Le``.
+    resolution : int
+        Side ``R`` of the window raster (``R × R`` pixels over the light's min–max window).
+    edge_angle : float
+        Radians a polyline piece of a projected edge may subtend (eq. 4).
+
+    Returns
+    -------
+    H : (n, 3) float64
+        ``Σ_lights π Le F V``.
+    work : (n,) int64
+        Candidate occluders rasterized per point (summed over lights; 0: no raster at all).
+    """
+    npts = points.shape[0]
+    out = np.zeros((npts, 3))
+    work = np.zeros(npts, dtype=np.int64)
+    r = resolution
+    n_tri = grid.triangles.shape[0]
+    stamp = np.full(n_tri, -1, dtype=np.int64)
+    cand = np.empty(n_tri, dtype=np.int32)
+    planes = np.zeros((5, 5))
+    lx = np.empty(4)
+    ly = np.empty(4)
+    lz = np.empty(4)
+    ev = np.zeros((1, 4), dtype=np.int32)
+    enrm = np.zeros((1, 3))
+    eoff = np.zeros(1)
+    scr = np.zeros((6, 5))
+    qclip = np.zeros(5, dtype=np.bool_)
+    cap = edge_capacity(edge_angle)
+    xs = np.empty(cap)
+    ys = np.empty(cap)
+    xcross = np.empty((r, cap))
+    cnt = np.zeros(r, dtype=np.int64)
+    item = np.empty(r * r, dtype=np.int32)
+    zbuf = np.empty(r * r)
+    mask = np.empty(r * r)
+    xc = np.empty(r)
+    yc = np.empty(r)
+    tab = split_table(edge_angle)
+    cos_thr = np.cos(edge_angle)
+    sid = 0
+    for i in range(npts):
+        p = points[i]
+        n = normals[i]
+        for m in range(em_corners.shape[0]):
+            cntm = em_count[m]
+            en = em_normal[m]
+            # one-sided emitter: p strictly on its emitting side (as the shadow-ray method)
+            side = (en[0] * (p[0] - em_corners[m, 0, 0]) + en[1] * (p[1] - em_corners[m, 0, 1])
+                    + en[2] * (p[2] - em_corners[m, 0, 2]))
+            if side <= 0.0:
+                continue
+            F = lambert_polygon(p[0], p[1], p[2], n[0], n[1], n[2], em_corners[m], cntm)
+            if F <= 0.0:
+                continue
+            vis, n_c = visible_fraction(grid, p, n, em_corners[m], cntm, en, off, hz, r,
+                                        cos_thr, tab, planes, stamp, sid, cand, lx, ly, lz,
+                                        ev, enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item,
+                                        zbuf, mask, xc, yc)
+            sid += 1
+            work[i] += n_c
+            for c in range(3):
+                out[i, c] += np.pi * em_radiance[m, c] * F * vis
+    return out, work
+
+
+@jit
+def area_irradiance(grid, points, normals, off, hz, em_corners, em_count, em_normal,
+                    em_radiance, resolution, edge_angle):
+    """``(n, 3) float64``: :func:`area_irradiance_stats` without the work counts."""
+    return area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count,
+                                 em_normal, em_radiance, resolution, edge_angle)[0]
