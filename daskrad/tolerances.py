@@ -35,3 +35,9 @@ HORIZON_EPS = 1e-9
 #: R = 100). A quarter pixel is half the raster's own ±1/2-pixel sampling of an outline, and
 #: the anti-aliased default takes an unoccluded element's size from Lambert's formula anyway.
 EDGE_SAGITTA_PX = 0.25
+
+#: Two faces facing the same way are coplanar when every corner of each lies within
+#: ``COPLANAR * diag`` of the other's plane, and they overlap when they share a region wider
+#: than that in every direction (issue 7: such a pair z-fights and is refused). As tight as
+#: ``HORIZON_EPS``: the form factors tell two planes apart beyond it.
+COPLANAR = 1e-9

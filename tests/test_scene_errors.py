@@ -204,3 +204,58 @@ def test_cli_info_refuses_bad_input_in_one_line(tmp_path, case):
     assert len(lines) == 1, proc.stderr
     assert "Traceback" not in proc.stderr
     assert str(named) in lines[0] and fragment in lines[0]
+
+
+# --- coplanar overlapping faces (issue 7) ---------------------------------------------------
+
+SQUARES = ("v 0 0 0\nv 2 0 0\nv 2 2 0\nv 0 2 0\n"      # 1-4: a 2 × 2 square, facing +z
+           "v 1 1 0\nv 3 1 0\nv 3 3 0\nv 1 3 0\n"      # 5-8: overlapping it by 1 × 1
+           "v 4 0 0\nv 5 0 0\nv 5 1 0\nv 4 1 0\n")     # 9-12: elsewhere in the plane
+
+
+def test_coplanar_overlap_is_refused_naming_both_faces_of_the_file(tmp_path):
+    # faces are numbered as in the file: the disjoint square (face 1) comes first, the
+    # overlapping pair are faces 2 and 3
+    path = _obj(tmp_path, SQUARES + "f 9 10 11 12\nf 1 2 3 4\nf 5 6 7 8\n")
+    with pytest.raises(SceneError) as err:
+        load_scene(path)
+    line = err.value.line()
+    assert "\n" not in line
+    assert line.startswith(f"{path}: faces 2 and 3 lie in one plane, face the same way "
+                           "and overlap"), line
+
+
+@pytest.mark.parametrize("body", [
+    "f 1 2 3 4\nf 2 9 12 3\n",                 # sharing the edge x = 2 of the square
+    "f 1 2 3 4\nf 9 10 11 12\n",               # coplanar, disjoint
+    "f 1 2 3 4\nf 3 6 7 8\n",                  # sharing a corner only (vertex 3 = (2, 2))
+    "f 1 2 3 4\nf 8 7 6 5\n",                  # overlapping back to back: a two-sided plate
+    "f 1 2 3\nf 1 3 4\n",                     # a square as two triangles (the diagonal)
+])
+def test_faces_that_touch_or_face_away_are_not_overlaps(tmp_path, body):
+    extra = "v 3 3 0\n"  # 13 (unused)
+    scene = load_scene(_obj(tmp_path, SQUARES + extra + body))
+    assert len(scene.polygons) >= 2
+
+
+def test_cornell_box_light_in_the_ceiling_hole_is_not_an_overlap():
+    # the light lies in the ceiling's plane, facing down like the ceiling's pieces around it,
+    # and touches them along edges only (the ceiling is four pieces around the hole)
+    scene = load_scene(REPO / "scenes" / "cornell_box.obj")
+    assert scene.emitting.sum() >= 1
+
+
+def test_coplanar_overlap_far_from_the_origin_and_at_any_scale():
+    # the tolerance follows the scene's size: the same pair is refused in millimetres and
+    # in kilometres, and 1e6 away from the origin
+    v = np.array([[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0], [1, 1, 0], [3, 1, 0],
+                  [3, 3, 0], [1, 3, 0]], float)
+    for scale, offset in [(1e-3, 0.0), (1e3, 0.0), (1.0, 1e6)]:
+        with pytest.raises(SceneError, match="faces 1 and 2 lie in one plane"):
+            scene_from_arrays(v * scale + offset, [[0, 1, 2, 3], [4, 5, 6, 7]], [0, 0],
+                              [[0.5] * 3], [[1.0] * 3])
+        # lifted off the plane by 1e-6 of the scene's size: two planes, accepted
+        lifted = v * scale + offset
+        lifted[4:, 2] += 1e-6 * 3.6 * scale
+        scene_from_arrays(lifted, [[0, 1, 2, 3], [4, 5, 6, 7]], [0, 0], [[0.5] * 3],
+                          [[1.0] * 3])

@@ -70,6 +70,7 @@ def load_scene(path: str | Path, config: str | Path | None = None) -> Scene:
         diag = scale_of(vertices, obj.flat)
         polygons, face = faces_to_polygons(vertices, obj.flat, obj.counts, diag)
         polygon_material = obj.face_material[face]
+        polygon_face = face
         resolved = [m.resolved() for m in obj.materials]
         kd, ke, ks = (np.array([r[i] for r in resolved]).reshape(-1, 3) for i in range(3))
         ns = np.array([r[3] for r in resolved], dtype=np.float64)
@@ -77,6 +78,7 @@ def load_scene(path: str | Path, config: str | Path | None = None) -> Scene:
         names = [m.name for m in obj.materials]
     else:
         vertices, polygons, polygon_material, names, kd, ke = read_mesh(path)
+        polygon_face = None
         ks, ns, mirror = None, None, None
 
     return scene_from_arrays(
@@ -93,4 +95,5 @@ def load_scene(path: str | Path, config: str | Path | None = None) -> Scene:
         camera=None if cfg is None else cfg.camera,
         path=str(path),
         material_names=names,
+        polygon_face=polygon_face,
     )

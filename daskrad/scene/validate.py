@@ -11,6 +11,7 @@ import numpy as np
 
 from daskrad import tolerances
 from daskrad.errors import SceneError
+from daskrad.scene.overlap import coplanar_overlaps
 from daskrad.scene.polygons import convex_planar, faces_to_polygons, polygon_area
 from daskrad.scene.types import Camera, DirectionalLights, Materials, PointLights, Scene
 
@@ -62,6 +63,20 @@ def duplicated_polygons(vertices: np.ndarray, polygons: np.ndarray) -> np.ndarra
     repeated = np.ones(len(polygons), bool)
     repeated[first] = False
     return repeated
+
+
+def _refuse_coplanar_overlaps(v, poly, origin, diag, path: str) -> None:
+    """One line naming the first pair of faces (1-based, in file order) that z-fight."""
+    pairs = coplanar_overlaps(v, poly, diag)
+    if len(pairs) == 0:
+        return
+    a, b = sorted(int(origin[i]) + 1 for i in pairs[0])
+    more = f" ({len(pairs) - 1} more such pairs)" if len(pairs) > 1 else ""
+    raise SceneError(
+        f"faces {a} and {b} lie in one plane, face the same way and overlap, so they would "
+        f"z-fight{more}: remove one, cut it out of the other, or lift it off the plane",
+        path,
+    )
 
 
 def _rgb_table(values, m: int, name: str, path: str) -> np.ndarray:
@@ -122,6 +137,7 @@ def scene_from_arrays(
     camera: Camera | None = None,
     path: str = "<arrays>",
     material_names=None,
+    polygon_face=None,
 ) -> Scene:
     """Build a :class:`Scene` from arrays, with every check :func:`load_scene` makes.
 
@@ -143,12 +159,17 @@ def scene_from_arrays(
     path : str
         Named in every error message and kept as ``Scene.path``.
     material_names : sequence of M str, optional
+    polygon_face : (Q,) int, optional
+        The input face (0-based, in file order) each polygon came from, for messages;
+        default: the polygon's own row.
 
     Zero-area polygons (below ``DEGENERATE_AREA * diag²``) are dropped with a warning and
     counted in ``Scene.dropped_degenerate``. A polygon that repeats an earlier one (the same
     corner positions in the same cyclic order) is dropped with a warning: two coincident
     copies would both shoot their emission and split what they receive (issue 7).
     Back-to-back copies (the opposite winding, a two-sided surface) are kept.
+    Two faces that lie in one plane, face the same way and overlap (beyond sharing an edge)
+    are refused, naming both faces: they z-fight (:mod:`daskrad.scene.overlap`).
     A scene with no emitting polygon and no light with
     positive power is refused.
     """
@@ -166,6 +187,10 @@ def scene_from_arrays(
         raise SceneError("no faces in the scene", path)
     if (poly[:, :3] < 0).any() or (poly[:, 3] < -1).any() or (poly >= len(v)).any():
         raise SceneError(f"polygon corner index out of range ({len(v)} vertices)", path)
+    origin = (np.arange(len(poly)) if polygon_face is None
+              else np.array(polygon_face, dtype=np.int64).reshape(-1))
+    if len(origin) != len(poly):
+        raise SceneError(f"{len(origin)} face numbers for {len(poly)} polygons", path)
 
     try:
         kd = np.array(diffuse, dtype=np.float64)
@@ -222,6 +247,7 @@ def scene_from_arrays(
             order = np.argsort(face, kind="stable")
             poly = np.concatenate([poly[keep], split])[order]
             pm = pm[face[order]]
+            origin = origin[face[order]]
     area = polygon_area(v, poly)
     degenerate = ~(area > tolerances.DEGENERATE_AREA * diag**2)
     dropped = int(degenerate.sum())
@@ -229,12 +255,13 @@ def scene_from_arrays(
         raise SceneError(f"no faces in the scene (all {dropped} have zero area)", path)
     if dropped:
         warnings.warn(f"{path}: dropped {dropped} zero-area faces", stacklevel=2)
-        poly, pm = poly[~degenerate], pm[~degenerate]
+        poly, pm, origin = poly[~degenerate], pm[~degenerate], origin[~degenerate]
     repeated = duplicated_polygons(v, poly)
     if repeated.any():
         warnings.warn(f"{path}: dropped {int(repeated.sum())} duplicated faces (same corners "
                       "and winding as an earlier face; the first is kept)", stacklevel=2)
-        poly, pm = poly[~repeated], pm[~repeated]
+        poly, pm, origin = poly[~repeated], pm[~repeated], origin[~repeated]
+    _refuse_coplanar_overlaps(v, poly, origin, diag, path)
 
     emits = (ke[pm] > 0).any()
     lit = (points.intensity > 0).any() or (directional.irradiance > 0).any()
