@@ -105,3 +105,40 @@ def test_next_batch_is_deterministic_and_skips_in_flight():
                                   [2, 4, 0])
     # patches without unshot power are never chosen
     assert len(solve.next_batch(unshot, area, 10)) == 4
+
+
+def _perpendicular_squares(n: int):
+    """Shoot context: a unit-square patch in y = 0 facing +y, and the unit square x, y in
+    [0, 1] at z = 0 facing +z that shares its edge, split into n × n receiver elements."""
+    from daskrad import shoot
+
+    g = np.linspace(0.0, 1.0, n + 1)
+    x, y = np.meshgrid(g, g, indexing="ij")
+    v = np.concatenate([[[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]],
+                        np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])])
+    i, j = (a.ravel() for a in np.meshgrid(np.arange(n), np.arange(n), indexing="ij"))
+    corner = 4 + i * (n + 1) + j
+    ev = np.column_stack([corner, corner + n + 1, corner + n + 2, corner + 1]).astype(np.int32)
+    return shoot.ShootContext(
+        vertices=v.astype(float), elem_verts=ev, elem_area=np.full(n * n, 1.0 / n**2),
+        elem_centroid=v[ev].mean(axis=1), elem_normal=np.tile([0.0, 0.0, 1.0], (n * n, 1)),
+        elem_polygon=np.ones(n * n, np.int32), patch_verts=np.array([[0, 1, 2, 3]], np.int32),
+        patch_polygon=np.zeros(1, np.int32), patch_area=np.ones(1),
+        patch_centroid=np.array([[0.5, 0.0, 0.5]]), patch_normal=np.array([[0.0, 1.0, 0.0]]),
+        patch_radius=np.array([math.sqrt(0.5)]), method="analytic", resolution=32, options={})
+
+
+@pytest.mark.parametrize("n", [1, 2])
+def test_near_receiver_sharing_an_edge_averages_F_ji_over_its_area(n):
+    # Howell: perpendicular unit squares sharing an edge, F = 0.200044 either way. The near
+    # field takes F_ji from each receiver element to the whole shooter; summed over the
+    # receiver's elements (area-weighted) it must give Howell's factor. At the centroid alone
+    # it errs by 5.0 % (n = 1) and 1.0 % (n = 2), the integrand varying fast near the shared
+    # edge; stratified (2 × 2 per triangle) it measured 0.66 % and 0.16 %: limit 1 % / 0.3 %.
+    from daskrad import shoot
+
+    ctx = _perpendicular_squares(n)
+    F = shoot.receiver_average(ctx, 0, np.arange(n * n))
+    assert np.all(F > 0)
+    np.testing.assert_allclose((F * ctx.elem_area).sum(), 0.200044,
+                               rtol={1: 0.01, 2: 0.003}[n])
