@@ -69,6 +69,9 @@ def run(scene_path, output, settings: Settings, progress: bool = True,
 
     write_exr(output, image)                                                 # 5 output
     write_png(output.with_suffix(".png"), image)
+    warnings = [w for w in (_unlit_warning(scene, h, reflectance, sol, extra),) if w]
+    for w in warnings:
+        print(f"daskrad: warning: {w}", file=sys.stderr)
     report = {
         "scene": str(scene_path),
         "output": str(output),
@@ -91,6 +94,7 @@ def run(scene_path, output, settings: Settings, progress: bool = True,
         "settings": settings.as_dict(),
         "image": {"width": camera.width, "height": camera.height,
                   "mean_radiance": image.reshape(-1, 3).mean(axis=0)},
+        "warnings": warnings,
     }
     seconds["write"] = time.perf_counter() - t
     write_report(output.with_suffix(".json"), report)
@@ -99,6 +103,25 @@ def run(scene_path, output, settings: Settings, progress: bool = True,
               f"RMS {sol.history[-1][1] if sol.history else 1.0:.3g} > {settings.tolerance:g});"
               " the image adds an ambient term", file=sys.stderr)
     return report
+
+
+def _unlit_warning(scene, h, reflectance, sol, extra) -> str | None:
+    """The warning for a scene where no surface receives light, else ``None``.
+
+    No element got direct irradiance (point, directional or gathered area light) and no shot
+    reflected anything (``B = E`` everywhere): typically every face points away from every
+    light, and the image would be black but for the emitters, silently (issue 7). A scene
+    that reflects nothing (ρ = 0 everywhere) is dark by design and not warned about.
+    """
+    if not (reflectance > 0).any():
+        return None
+    H = extra.get("vertex_irradiance")
+    emission = math.pi * scene.materials.emission[h.elem_material]
+    if (H is not None and (H > 0).any()) or (sol.radiosity > emission).any():
+        return None
+    return ("no surface receives any light (zero direct irradiance and nothing received from "
+            "emitters): the image shows only the emitters; check that faces and lights point "
+            "at each other")
 
 
 def solve_scene(scene, settings: Settings, executor=None, seconds: dict | None = None,
