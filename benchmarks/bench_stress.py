@@ -54,6 +54,9 @@ def _cases(quick: bool):
             return results
         out.append((f"degenerate: {name}", run_case))
 
+    out.append(("degenerate: coplanar overlapping faces",  # refused (SceneError)
+                lambda: sc.safety("coplanar overlapping faces", sc.coplanar_overlap_scene())))
+
     reference = {}
 
     def units(scale, offset):
