@@ -101,8 +101,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--area-samples", type=_positive_int,
                      help="shadow rays per area light: N x N (default 4)")
     run.add_argument("--area-method", type=_area_method,
-                     help="area-light shadows at vertices: rays (Lambert x shadow rays) or "
-                          "hemisphere (the paper's window on the hemisphere base)")
+                     help="area-light shadows at vertices: hemisphere (the paper's window on "
+                          "the hemisphere base; default) or rays (Lambert x shadow rays)")
     run.add_argument("--mirror-depth", type=_nonneg_int, help="mirror bounces per pixel ray")
     run.add_argument("--dashboard", metavar="HOST:PORT",
                      help="where a LocalCluster's dashboard listens (default 127.0.0.1:8787)")

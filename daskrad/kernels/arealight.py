@@ -161,7 +161,29 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, corners, count, planes, hz, off, s
         cz = origin[2] + (k + 0.5) * cell[2]
         for j in range(j0, j1 + 1):
             cy = origin[1] + (j + 0.5) * cell[1]
-            for i in range(i0, i1 + 1):
+            # The cell test below is linear in the cell's x centre along a row: each plane
+            # bounds i from one side, so the row's candidate cells form one interval, found
+            # per row instead of per cell (widened by one cell against rounding; the exact
+            # per-cell test still runs inside it).
+            ia = i0
+            ib = i1
+            for a in range(npl):
+                kx = planes[a, 0]
+                rest = (planes[a, 1] * cy + planes[a, 2] * cz - planes[a, 3]
+                        + abs(kx) * hx + abs(planes[a, 1]) * hy + abs(planes[a, 2]) * hzc
+                        + planes[a, 4])
+                # inside when kx · cx + rest >= 0, cx = origin + (i + 1/2) cell
+                if kx == 0.0:
+                    if rest < 0.0:
+                        ib = ia - 1
+                    continue
+                bound = ((-rest / kx) - origin[0]) / cell[0] - 0.5
+                bound = min(max(bound, i0 - 2.0), i1 + 2.0)  # clamped before int()
+                if kx > 0.0:
+                    ia = max(ia, int(np.floor(bound)) - 1)
+                else:
+                    ib = min(ib, int(np.ceil(bound)) + 1)
+            for i in range(ia, ib + 1):
                 cx = origin[0] + (i + 0.5) * cell[0]
                 out = False
                 for a in range(npl):
@@ -181,16 +203,26 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, corners, count, planes, hz, off, s
                     if stamp[t] == sid:
                         continue
                     stamp[t] = sid
-                    # above the eye's horizon somewhere (else it is clipped away entirely)
+                    # Cheapest rejections first: in front of the light by more than off
+                    # (drops the light's own triangles and the ceiling around it, which fill
+                    # the cells at the pyramid's base), then above the eye's horizon
+                    # somewhere (else clipped away entirely), then no side plane separates it.
+                    lp = count
+                    best = -np.inf
+                    for v in range(3):
+                        best = max(best, planes[lp, 0] * tris[t, v, 0]
+                                   + planes[lp, 1] * tris[t, v, 1]
+                                   + planes[lp, 2] * tris[t, v, 2] - planes[lp, 3])
+                    if best <= off:
+                        continue
                     up = -np.inf
                     for v in range(3):
                         up = max(up, nx * (tris[t, v, 0] - ex) + ny * (tris[t, v, 1] - ey)
                                  + nz * (tris[t, v, 2] - ez))
                     if up <= hz:
                         continue
-                    # no side plane separates it; in front of the light by more than off
                     keep = True
-                    for a in range(npl):
+                    for a in range(count):
                         kx = planes[a, 0]
                         ky = planes[a, 1]
                         kz = planes[a, 2]
@@ -198,7 +230,7 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, corners, count, planes, hz, off, s
                         for v in range(3):
                             best = max(best, kx * tris[t, v, 0] + ky * tris[t, v, 1]
                                        + kz * tris[t, v, 2] - planes[a, 3])
-                        if (a < count and best < -planes[a, 4]) or (a == count and best <= off):
+                        if best < -planes[a, 4]:
                             keep = False
                             break
                     if keep:
