@@ -223,7 +223,7 @@ def _direct_pass(scene, settings, h, grid, tris, tri_verts, tri_elem, emission, 
                      levels=0)
         return h, grid, tris, tri_verts, tri_elem, solve.initial_solution(h, emission)
     t = time.perf_counter()
-    ctx = direct.make_context(scene, h, grid, settings.area_samples)
+    ctx = direct.make_context(scene, h, grid, settings.area_samples, method=settings.area_method)
     if not settings.two_pass:  # emitters are shot: gather point and directional lights only
         ctx = _without_emitters(ctx)
     H = direct.compute(ctx, 0, len(h.vertices), executor)
