@@ -11,7 +11,9 @@ with ``R × R`` pixels over ``[-1, 1]²`` and four side faces of ``R × R/2`` pi
    and the face's frustum ``|a| <= c``, ``|b| <= c``,
 3. projected centrally, ``(a/c, b/c)``: straight edges stay straight, so no edge splitting,
 4. scan-converted with the rasterizer the hemisphere base uses
-   (:func:`daskrad.kernels.hemisphere.fill_polygon`) into the face's z-buffer; the nearness
+   (:func:`daskrad.kernels.hemisphere.fill_polygon`, its body written out in the per-element
+   loop exactly as the hemisphere base's item buffer does, so both pay no call per element
+   and face) into the face's z-buffer; the nearness
    ``1/t`` for the direction ``(x, y, 1)`` of the face is linear in ``(x, y)``.
 
 Every pixel carries its **delta form factor** (Cohen & Greenberg): on the top face
@@ -31,7 +33,7 @@ import numpy as np
 
 from daskrad.kernels._jit import jit
 from daskrad.kernels.geometry import element_planes, lex_less, scene_diagonal
-from daskrad.kernels.hemisphere import fill_polygon, local_frame
+from daskrad.kernels.hemisphere import local_frame
 
 #: Face axes in the shooter's local frame: for each of the 5 faces, (index, sign) of the local
 #: coordinate giving ``a``, ``b`` and ``c``. Face 0 is the top; 1–4 the sides, whose ``b`` is the
@@ -259,16 +261,77 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, sctr, sr
             na = sa * nl[ia]
             nb = sb * nl[ib]
             nc = sc * nl[ic]
+            # fill_polygon's body written out (as in the hemisphere base's _shoot): the call
+            # passing a dozen arrays costs more than a small element's pixels
             if f == 0:
-                fill_polygon(xs, ys, m, e, xc, xc, r, r, -1.0, half_r, -1.0, half_r,
-                             mask[: r * r], na / c, nb / c, nc / c, 0.0, xcross, cnt,
-                             item[: r * r], zbuf[: r * r])
+                o0 = 0
+                nrow = r
+                y0 = -1.0
+                inv_py = half_r
+                ycs = xc
             else:
                 o0 = r * r + (f - 1) * r * h
-                o1 = o0 + r * h
-                fill_polygon(xs, ys, m, e, xc, zc, r, h, -1.0, half_r, 0.0, float(h),
-                             mask[o0:o1], na / c, nb / c, nc / c, 0.0, xcross, cnt,
-                             item[o0:o1], zbuf[o0:o1])
+                nrow = h
+                y0 = 0.0
+                inv_py = float(h)
+                ycs = zc
+            da = na / c
+            db = nb / c
+            dc = nc / c
+            ymin = np.inf
+            ymax = -np.inf
+            for a in range(m):
+                ymin = min(ymin, ys[a])
+                ymax = max(ymax, ys[a])
+            j0 = max(int(np.ceil((ymin - y0) * inv_py - 0.5)) - 1, 0)
+            j1 = min(int(np.floor((ymax - y0) * inv_py - 0.5)) + 1, nrow - 1)
+            if j0 > j1:
+                continue
+            for j in range(j0, j1 + 1):
+                cnt[j] = 0
+            for a in range(m):
+                b = a + 1 if a + 1 < m else 0
+                if ys[a] < ys[b]:
+                    lo = a
+                    hi = b
+                elif ys[b] < ys[a]:
+                    lo = b
+                    hi = a
+                else:
+                    continue
+                ylo = ys[lo]
+                yhi = ys[hi]
+                slope = (xs[hi] - xs[lo]) / (yhi - ylo)
+                ja = max(int(np.ceil((ylo - y0) * inv_py - 0.5)) - 1, j0)
+                jb = min(int(np.floor((yhi - y0) * inv_py - 0.5)) + 1, j1)
+                for j in range(ja, jb + 1):
+                    ycj = ycs[j]
+                    if ylo <= ycj < yhi:
+                        xcross[j, cnt[j]] = xs[lo] + (ycj - ylo) * slope
+                        cnt[j] += 1
+            for j in range(j0, j1 + 1):
+                ncr = cnt[j]
+                if ncr < 2:
+                    continue
+                for a in range(1, ncr):
+                    x = xcross[j, a]
+                    b = a - 1
+                    while b >= 0 and xcross[j, b] > x:
+                        xcross[j, b + 1] = xcross[j, b]
+                        b -= 1
+                    xcross[j, b + 1] = x
+                row = o0 + j * r
+                rowterm = db * ycs[j] + dc
+                for a in range(0, ncr - 1, 2):
+                    i_lo = max(int(np.ceil((xcross[j, a] + 1.0) * half_r - 0.5)), 0)
+                    i_hi = min(int(np.ceil((xcross[j, a + 1] + 1.0) * half_r - 0.5)) - 1, r - 1)
+                    for i in range(i_lo, i_hi + 1):
+                        idx = row + i
+                        # every face pixel counts (the mask is 0 everywhere on the cube)
+                        near = da * xc[i] + rowterm
+                        if near > zbuf[idx]:
+                            zbuf[idx] = near
+                            item[idx] = e
     for k in range(item.shape[0]):
         if item[k] >= 0:
             out[item[k]] += weights[k]
