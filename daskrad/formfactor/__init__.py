@@ -195,8 +195,10 @@ def hemisphere_rows(points, normals, vertices, elem_verts, resolution=256, **opt
     The item buffer decides **visibility**, Lambert's contour formula the **size** (issue 6,
     item 2): ``F_j = L_j · won_j / covered_j``, the exact unoccluded form factor times the
     fraction of the element's disc pixels it wins after hidden-surface removal. An element
-    that covers no pixel centre gets ``L_j`` when it lies in front at the pixel nearest to its
-    centroid's direction and 0 otherwise (:func:`daskrad.kernels.hemisphere.hemisphere_visibility`).
+    that covers no pixel centre gets ``L_j`` times the fraction of the 2 x 2 pixels around its
+    centroid's direction where it lies in front, weighted bilinearly by the direction's
+    position, so ``F_j`` is continuous in the geometry and the units
+    (:func:`daskrad.kernels.hemisphere.hemisphere_visibility`).
 
     Error: an unoccluded element gets ``L_j`` exactly, whatever its size, distance or angle (no
     aliasing). A partly occluded one errs only through the pixels along the *occluder's*
