@@ -55,11 +55,14 @@ ORIGIN = np.zeros(3)
 #: rasterizer ``fill_polygon`` and its edge table).
 OPTIMISATIONS = {
     "hemisphere": "cull (back-face, corners below horizon) before projecting; auto edge angle "
-                  "(quarter-pixel sagitta); Lambert for every facing element",
-    "hemisphere-itembuffer": "cull (back-face, corners below horizon); auto edge angle",
+                  "(quarter-pixel sagitta); per-element path (cull, clip, project, fill) "
+                  "in one loop, no calls; Lambert for every facing element",
+    "hemisphere-itembuffer": "cull (back-face, corners below horizon); auto edge angle; "
+                             "per-element path in one loop",
     "hemisphere-scanline": "cull (back-face, corners below horizon); 1 deg edges (exact spans)",
     "hemicube": "cull (back-face, bounding sphere below horizon); per-face outcode trivial "
-                "reject/accept before Sutherland-Hodgman; no per-shot allocation",
+                "reject/accept before Sutherland-Hodgman; no per-shot allocation; "
+                "fill written out in the per-face loop (as the hemisphere's)",
     "raycast": "voxel-grid shadow rays only for elements with Lambert > 0",
 }
 COLOURS = {"hemisphere": (200, 30, 30), "hemisphere-itembuffer": (240, 140, 0),
