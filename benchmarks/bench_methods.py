@@ -56,7 +56,7 @@ ORIGIN = np.zeros(3)
 OPTIMISATIONS = {
     "hemisphere": "cull (back-face, corners below horizon) before projecting; auto edge angle "
                   "(quarter-pixel sagitta); per-element path (cull, clip, project, fill) "
-                  "in one loop, no calls; Lambert for every facing element",
+                  "in one loop, no calls; Lambert only where the visible fraction is > 0",
     "hemisphere-itembuffer": "cull (back-face, corners below horizon); auto edge angle; "
                              "per-element path in one loop",
     "hemisphere-scanline": "cull (back-face, corners below horizon); 1 deg edges (exact spans)",

@@ -119,9 +119,6 @@ def test_flipped_normal_is_a_hole_one_sided_and_creates_no_energy():
 
 # --- 2. units and placement -----------------------------------------------------------------
 
-UNITS_XFAIL = sc.KNOWN_FAILURES["units"]
-
-
 @pytest.fixture(scope="module")
 def cornell_reference(tmp_path_factory):
     return sc.render_cornell(tmp_path_factory.mktemp("units") / "ref")

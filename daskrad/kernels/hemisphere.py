@@ -430,10 +430,11 @@ def local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz):
 @jit
 def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
            resolution, centre, dz, cos_thr, tab, plane_depth,
-           lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, won, covered, visible, gx, gy, gz):
+           lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, won, covered, visible, gx, gy, gz,
+           drawn):
     """One shot: fill ``won (E,)``, ``covered (E,)`` (int32) and ``visible (E,)`` (float64,
-    the visible fraction of elements that cover no pixel centre), all zeroed by the caller;
-    ``gx, gy, gz (E,)`` are scratch."""
+    the bilinear visible fraction at the centroid's direction of every element drawn), all
+    zeroed by the caller; ``gx, gy, gz (E,) float64`` and ``drawn (E,) int32`` are scratch."""
     r = resolution
     half_r = 0.5 * r
     t1x, t1y, t1z, t2x, t2y, t2z = local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz)
@@ -594,41 +595,43 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
                             zbuf[idx] = near
                             item[idx] = e
         covered[e] = cov
-        if cov == 0:
-            # Too small to hold a pixel centre: remember the direction of its (clipped)
-            # centroid for the visibility test below, once the buffer is complete.
-            mx = 0.0
-            my = 0.0
-            mz = 0.0
-            for a in range(m):
-                mx += qx[a]
-                my += qy[a]
-                mz += qz[a]
-            gx[n_small] = mx
-            gy[n_small] = my
-            gz[n_small] = mz
-            covered[e] = -1 - n_small  # temporary marker: slot of the direction
-            n_small += 1
+        # Remember the direction of the (clipped) centroid for the visibility test below,
+        # once the buffer is complete: every element drawn gets it, not only those covering
+        # no pixel centre, since an element thinner than the outline's chord error (a
+        # sliver) covers centres that are chord artefacts, not its own (hemisphere_rows).
+        mx = 0.0
+        my = 0.0
+        mz = 0.0
+        for a in range(m):
+            mx += qx[a]
+            my += qy[a]
+            mz += qz[a]
+        gx[n_small] = mx
+        gy[n_small] = my
+        gz[n_small] = mz
+        drawn[n_small] = e
+        n_small += 1
     for k in range(r * r):
         if item[k] >= 0:
             won[item[k]] += 1
-    if n_small == 0:
-        return
-    # Elements that cover no pixel centre: the visible fraction along the direction ``d`` of
-    # their centroid, interpolated bilinearly between the 2 x 2 pixel centres around ``d``. At
-    # each of those pixels the element counts visible when no other element's plane lies
-    # nearer along ``d`` (the pixel's winner), or when the pixel holds no information (outside
-    # the disc, or empty). Bilinear weights make the fraction continuous in ``d``: a direction
-    # on a pixel boundary weighs both sides by 1/2, so round-off (a change of units, a shift of
-    # the scene) moves it by O(ε·R), where the nearest pixel alone flipped between 0 and 1
-    # (issue 7). Both nearnesses are exact (1/t along the same direction), also with
-    # plane_depth, so a small element lying in the plane of a pixel's winner (a neighbour on
-    # the same wall) ties and counts visible there.
-    for e in range(n_elem):
-        if covered[e] >= 0:
+    # Every element drawn (the anti-aliased method uses it for the small ones, those covering no
+    # pixel centre or less than a pixel of true area): the visible fraction along the direction
+    # ``d`` of their centroid, interpolated bilinearly between the 2 x 2 pixel centres around ``d``.
+    # At each of those pixels the element counts visible when no other element's plane lies nearer
+    # along ``d`` (the pixel's winner), or when the pixel holds no information (outside the disc, or
+    # empty). Bilinear weights make the fraction continuous in ``d``: a direction on a pixel
+    # boundary weighs both sides by 1/2, so round-off (a change of units, a shift of the scene)
+    # moves it by O(ε·R), where the nearest pixel alone flipped between 0 and 1 (issue 7). Both
+    # nearnesses are exact (1/t along the same direction), also with plane_depth, so a small element
+    # lying in the plane of a pixel's winner (a neighbour on the same wall) ties and counts visible
+    # there.
+    for slot in range(n_small):
+        e = drawn[slot]
+        if covered[e] > 0 and won[e] == covered[e]:
+            # in front at every pixel centre it covers: visible, no test needed (most
+            # elements; the test costs ~25 ns an element, 10 % of Table 2)
+            visible[e] = 1.0
             continue
-        slot = -1 - covered[e]
-        covered[e] = 0
         mx = gx[slot]
         my = gy[slot]
         mz = gz[slot]
@@ -705,11 +708,14 @@ def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edg
                           plane_depth, horizon_eps):
     """:func:`hemisphere_shots` plus ``visible : (S, E) float64`` in ``[0, 1]``.
 
-    ``visible[s, e]`` is set only for elements that cover no pixel centre (``covered == 0``)
-    but reach above the horizon: the fraction of the 2 x 2 pixels around the direction of its
-    centroid where the element is in front, weighted bilinearly by that direction's position,
-    so it is continuous in the geometry (see :func:`_shoot`). It lets the anti-aliased method
-    give such elements their analytic form factor times that fraction instead of 0.
+    ``visible[s, e]`` is set for every element that faces the point and reaches above the
+    horizon (0 for the culled ones): the fraction of the 2 x 2 pixels around the direction of
+    its centroid where the element is in front (a coplanar winner ties and counts visible),
+    weighted bilinearly by that direction's position, so it is continuous in the geometry (see
+    :func:`_shoot`). It lets the anti-aliased method give elements too small for their pixel
+    count to mean anything (no pixel centre covered, or less than
+    :data:`daskrad.tolerances.SUBPIXEL_AREA_PX` of true area) their analytic form factor times
+    that fraction.
 
     Returns ``(won, covered, n_disc, visible)``.
     """
@@ -734,6 +740,7 @@ def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edg
     gx = np.empty(n_elem)
     gy = np.empty(n_elem)
     gz = np.empty(n_elem)
+    drawn = np.empty(n_elem, dtype=np.int32)
     won = np.zeros((n_shot, n_elem), dtype=np.int32)
     covered = np.zeros((n_shot, n_elem), dtype=np.int32)
     visible = np.zeros((n_shot, n_elem))
@@ -744,7 +751,7 @@ def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edg
                normals[s, 0], normals[s, 1], normals[s, 2],
                vertices, elem_verts, enrm, eoff, hz, r, centre, dz, cos_thr, tab,
                plane_depth, lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, won[s], covered[s],
-               visible[s], gx, gy, gz)
+               visible[s], gx, gy, gz, drawn)
     return won, covered, n_disc, visible
 
 

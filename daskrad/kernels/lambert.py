@@ -41,6 +41,25 @@ def lambert_shots(points, normals, vertices, elem_verts):
         (ignoring every other element), 0 for back-facing elements and those wholly below the
         horizon.
     """
+    return _lambert(points, normals, vertices, elem_verts, np.ones((1, 1), dtype=np.bool_),
+                    False)
+
+
+@jit
+def lambert_masked(points, normals, vertices, elem_verts, mask):
+    """:func:`lambert_shots` only where ``mask : (S, E) bool`` is set, 0 elsewhere.
+
+    The anti-aliased hemisphere method multiplies Lambert's factor by a visible fraction, so it
+    needs it only where that fraction is positive (hidden elements cost nothing). Where the mask
+    is set the value is bit-identical to :func:`lambert_shots` (same code).
+    """
+    return _lambert(points, normals, vertices, elem_verts, mask, True)
+
+
+@jit
+def _lambert(points, normals, vertices, elem_verts, mask, use_mask):
+    """Body of :func:`lambert_shots` / :func:`lambert_masked`; ``mask`` read only when
+    ``use_mask``."""
     n_shot = points.shape[0]
     n_elem = elem_verts.shape[0]
     out = np.zeros((n_shot, n_elem))
@@ -61,6 +80,8 @@ def lambert_shots(points, normals, vertices, elem_verts):
         ny = normals[s, 1]
         nz = normals[s, 2]
         for e in range(n_elem):
+            if use_mask and not mask[s, e]:
+                continue
             # One-sided receiver: p must lie strictly on the lit side of the element's plane.
             if enrm[e, 0] * sx + enrm[e, 1] * sy + enrm[e, 2] * sz - eoff[e] <= 0.0:
                 continue
