@@ -51,7 +51,8 @@ def lambert_polygon(px, py, pz, nx, ny, nz, corners, count):
     """Lambert's unoccluded form factor from the differential area ``(p, n)`` to the polygon
     ``corners[:count] (count, 3)``, clipped to ``n · (x − p) ≥ 0`` (REFERENCES.md).
 
-    Orientation is not checked here (the caller decides one-sidedness).
+    Orientation is not checked here (the caller decides one-sidedness). The batch twin over
+    elements is :func:`daskrad.kernels.lambert._lambert`, written out for speed.
     """
     cx = np.empty(4)
     cy = np.empty(4)

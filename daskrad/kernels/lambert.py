@@ -59,7 +59,13 @@ def lambert_masked(points, normals, vertices, elem_verts, mask):
 @jit
 def _lambert(points, normals, vertices, elem_verts, mask, use_mask):
     """Body of :func:`lambert_shots` / :func:`lambert_masked`; ``mask`` read only when
-    ``use_mask``."""
+    ``use_mask``.
+
+    The per-element clip and contour sum are written out here instead of calling the
+    single-polygon twin :func:`daskrad.kernels.direct.lambert_polygon`: a numba call per element
+    with array arguments cost ~45 ns, which took the 50k-element analytic row from 3.4 to
+    5.8 ms when tried. Keep the two in step.
+    """
     n_shot = points.shape[0]
     n_elem = elem_verts.shape[0]
     out = np.zeros((n_shot, n_elem))
