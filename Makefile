@@ -6,7 +6,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 SCENE ?= scenes/cornell_box.obj
 OUT ?= out/cornell_box.exr
-WORKERS ?= 0
+WORKERS ?=
 
 .DEFAULT_GOAL := help
 .PHONY: help install test lint bench stress run clean
@@ -33,12 +33,13 @@ lint: $(STAMP) ## ruff and the import-linter layering contracts
 bench: $(STAMP) ## run the benchmarks; tables on stdout, JSON in benchmarks/results/
 	$(BIN)/python -m benchmarks
 
-stress: $(STAMP) ## the numerical stress suite, long cases included
+stress: $(STAMP) ## the numerical stress suite (long cases included) and its report table
 	$(BIN)/python -m pytest -q tests/test_stress.py
+	$(BIN)/python -m benchmarks.bench_stress
 
-run: $(STAMP) ## render the bundled Cornell box (SCENE=, OUT=, WORKERS= to change)
+run: $(STAMP) ## render the bundled Cornell box (SCENE=, OUT=, WORKERS=N to change)
 	mkdir -p $(dir $(OUT))
-	$(BIN)/daskrad run $(SCENE) -o $(OUT) --workers $(WORKERS)
+	$(BIN)/daskrad run $(SCENE) -o $(OUT) $(if $(WORKERS),--workers $(WORKERS))
 
 clean: ## remove the venv, caches and outputs
 	rm -rf $(VENV) out .pytest_cache .hypothesis
