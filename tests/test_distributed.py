@@ -232,3 +232,23 @@ def test_without_workers_option_small_scenes_stay_in_process():
     assert _auto_workers(scene, Settings(element_size=5.0)) == 2   # ~119,000 elements
     explicit = build_parser().parse_args(["run", str(CORNELL), "--workers", "0"])
     assert settings_from_args(explicit).workers == 0
+
+
+def test_lit_room_direct_pass_same_bits_in_process_and_on_two_workers(tmp_path, cluster_client):
+    # the two-pass pipeline with point, directional and area lights, adaptive subdivision and
+    # the per-pixel pass: direct-light futures, form factors and tiles all on the 2 workers
+    room = REPO / "scenes" / "lit_room.obj"
+    settings = Settings(max_iterations=64, width=48, height=48, dashboard="127.0.0.1:0")
+    a, b = tmp_path / "in-process.exr", tmp_path / "two-workers.exr"
+    run(room, a, settings.replace(workers=0), progress=False)
+    store = Store(b.with_suffix(".zarr"), settings.replace(workers=2))
+    executor = DaskExecutor(cluster_client, store)
+    direct_batches = []
+    submit_direct = executor.direct
+    executor.direct = lambda ctx, ranges: (direct_batches.append(len(ranges)),
+                                           submit_direct(ctx, ranges))[1]
+    report = run(room, b, settings.replace(workers=2), progress=False, executor=executor)
+    assert report["counts"]["point_lights"] and report["counts"]["directional_lights"]
+    assert report["counts"]["emitters"] > 0
+    assert direct_batches and sum(direct_batches) > 0  # direct light ran as futures
+    assert_same_run(a, b)
