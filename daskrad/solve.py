@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from daskrad.kernels import update
 from daskrad.mesh.types import Hierarchy
 
 
@@ -148,19 +149,10 @@ def apply_shot(h: Hierarchy, reflectance: np.ndarray, sol: Solution, shooter: in
 
     ``factors[k]`` is ``F_ij`` from shooter patch ``i`` to element ``ids[k]``, with
     ``Σ factors ≤ 1`` (guaranteed by the form-factor task), so a shot never sends more energy
-    than the shooter holds.
+    than the shooter holds. The arithmetic is :func:`daskrad.kernels.update.apply_shot`.
     """
-    dB = sol.unshot[shooter].copy()
-    sol.unshot[shooter] = 0.0
-    if len(ids):
-        scale = factors * (h.patch_area[shooter] / h.elem_area[ids])
-        delta = reflectance[ids] * (scale[:, None] * dB[None, :])
-        sol.radiosity[ids] += delta
-        patches = h.elem_patch[ids]
-        weights = h.elem_area[ids] / h.patch_area[patches]
-        for c in range(3):
-            sol.unshot[:, c] += np.bincount(patches, weights=delta[:, c] * weights,
-                                            minlength=h.n_patches)
+    update.apply_shot(sol.radiosity, sol.unshot, int(shooter), ids, factors, reflectance,
+                      h.elem_area, h.elem_patch, h.patch_area)
     sol.iteration += 1
 
 
