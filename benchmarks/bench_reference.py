@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import shutil
 import time
 from pathlib import Path
 
@@ -87,6 +88,7 @@ def main() -> dict:
                      "shots": report["iterations"], "seconds": seconds, **errors(img, ref)})
     for suffix in (".exr", ".png", ".json"):
         out.with_suffix(suffix).unlink(missing_ok=True)
+    shutil.rmtree(out.with_suffix(".zarr"), ignore_errors=True)
     print(f"reference: {SPP} paths/pixel at {SIZE}x{SIZE}, relative RMS noise {noise:.4f}")
     print(f"{'config':<22}{'elements':>9}{'shots':>7}{'seconds':>9}{'rel RMS':>9}"
           f"{'off light':>10}{'mean err R/G/B':>24}")
