@@ -34,6 +34,7 @@ import numpy as np
 import zarr
 
 from daskrad.errors import OptionError
+from daskrad.io.report import plain
 from daskrad.mesh.types import Hierarchy
 from daskrad.settings import Settings
 from daskrad.solve import Solution
@@ -67,14 +68,9 @@ def _put(group, name: str, data: np.ndarray, dtype=None, compress: bool = True) 
 
 
 def _jsonable(value):
-    """Attributes as JSON: numpy scalars to Python numbers (float64 round-trips exactly)."""
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
+    """Attributes as JSON: numpy scalars to Python numbers (float64 round-trips exactly);
+    inf and nan stay floats (:func:`_encode` spells them out)."""
+    return plain(value, keep_nonfinite=True)
 
 
 class Store:

@@ -9,17 +9,22 @@ from pathlib import Path
 import numpy as np
 
 
-def _plain(value):
-    """JSON-serialisable copy: arrays to lists, NumPy scalars to Python, non-finite to None."""
+def plain(value, *, keep_nonfinite: bool = False):
+    """JSON-serialisable copy: arrays to lists, NumPy scalars to Python, non-finite to None.
+
+    Floats keep their value (a float64 round-trips exactly through JSON). With
+    ``keep_nonfinite`` inf and nan stay floats, for callers that encode them themselves (the
+    solution store's attributes and contexts, :mod:`daskrad.distributed.store`).
+    """
     if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
+        return {str(k): plain(v, keep_nonfinite=keep_nonfinite) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
+        return [plain(v, keep_nonfinite=keep_nonfinite) for v in value]
     if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
+        return plain(value.tolist(), keep_nonfinite=keep_nonfinite)
     if isinstance(value, np.generic):
         value = value.item()
-    if isinstance(value, float) and not np.isfinite(value):
+    if isinstance(value, float) and not keep_nonfinite and not np.isfinite(value):
         return None
     return value
 
@@ -28,5 +33,5 @@ def write_report(path: str | Path, report: dict) -> None:
     """Write ``report`` as indented JSON, atomically."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.partial")
-    tmp.write_text(json.dumps(_plain(report), indent=2) + "\n")
+    tmp.write_text(json.dumps(plain(report), indent=2) + "\n")
     os.replace(tmp, path)
