@@ -47,7 +47,42 @@ BATCH_VERTICES = 2048
 
 
 @dataclass(frozen=True)
-class DirectContext:
+class LightArrays:
+    """The light arrays shared by :class:`DirectContext` and :class:`Lights`.
+
+    point_position, point_intensity : (L, 3) float64
+    dir_direction, dir_irradiance : (D, 3) float64
+        Unit travel directions; irradiance on a surface facing the light.
+    emitter_corners : (M, 4, 3) float64
+        Corners of the emitting patches (row 3 repeats row 2 for a triangle);
+        ``emitter_count (M,) int64``, ``emitter_normal (M, 3)``, ``emitter_radiance (M, 3)``
+        (``Ke``), ``emitter_area (M,)``.
+
+    They are the first fields of both subclasses (dataclass fields of a base come first), so
+    ``Lights(*ctx.light_args, ...)`` fills them positionally; the Dask layer ships both
+    classes field by field, by name (:func:`daskrad.distributed.store.put_context`).
+    """
+
+    point_position: np.ndarray
+    point_intensity: np.ndarray
+    dir_direction: np.ndarray
+    dir_irradiance: np.ndarray
+    emitter_corners: np.ndarray
+    emitter_count: np.ndarray
+    emitter_normal: np.ndarray
+    emitter_radiance: np.ndarray
+    emitter_area: np.ndarray
+
+    @property
+    def light_args(self) -> tuple:
+        """The light arrays in the order of :func:`daskrad.kernels.direct.irradiance_one`."""
+        return (self.point_position, self.point_intensity, self.dir_direction,
+                self.dir_irradiance, self.emitter_corners, self.emitter_count,
+                self.emitter_normal, self.emitter_radiance, self.emitter_area)
+
+
+@dataclass(frozen=True)
+class DirectContext(LightArrays):
     """What a direct-light task reads.
 
     grid : Grid
@@ -59,13 +94,8 @@ class DirectContext:
         into its polygon).
     offset : float
         Shadow-ray offset, ``RAY_OFFSET · diag`` (absolute length).
-    point_position, point_intensity : (L, 3) float64
-    dir_direction, dir_irradiance : (D, 3) float64
-        Unit travel directions; irradiance on a surface facing the light.
-    emitter_corners : (M, 4, 3) float64
-        Corners of the emitting patches (row 3 repeats row 2 for a triangle);
-        ``emitter_count (M,) int64``, ``emitter_normal (M, 3)``, ``emitter_radiance (M, 3)``
-        (``Ke``), ``emitter_area (M,)``.
+    point_position, ... emitter_area
+        The lights (:class:`LightArrays`).
     samples : int
         Shadow rays per area light: ``samples²`` (area method ``"rays"``).
     area_method : str
@@ -81,56 +111,24 @@ class DirectContext:
     area_points: np.ndarray
     normals: np.ndarray
     offset: float
-    point_position: np.ndarray
-    point_intensity: np.ndarray
-    dir_direction: np.ndarray
-    dir_irradiance: np.ndarray
-    emitter_corners: np.ndarray
-    emitter_count: np.ndarray
-    emitter_normal: np.ndarray
-    emitter_radiance: np.ndarray
-    emitter_area: np.ndarray
     samples: int = AREA_SAMPLES
     generation: int = 0
     area_method: str = Settings.area_method
     area_resolution: int = AREA_RESOLUTION
 
-    @property
-    def light_args(self) -> tuple:
-        """The light arrays in the order of :func:`daskrad.kernels.direct.irradiance_one`."""
-        return (self.point_position, self.point_intensity, self.dir_direction,
-                self.dir_irradiance, self.emitter_corners, self.emitter_count,
-                self.emitter_normal, self.emitter_radiance, self.emitter_area)
-
 
 @dataclass(frozen=True)
-class Lights:
+class Lights(LightArrays):
     """The lights alone, what the per-pixel pass (:mod:`daskrad.render`) evaluates at a point.
 
-    Same arrays as :class:`DirectContext` (``point_position``, ... ``emitter_area``), plus
+    The arrays of :class:`LightArrays` (``point_position``, ... ``emitter_area``), plus
     ``offset``, the absolute shadow-ray offset, and ``samples`` (``samples²`` stratified shadow
     rays per area light and point). No grid and no vertices: the render context has its own
     grid, and a tile task must not carry the mesh twice.
     """
 
-    point_position: np.ndarray
-    point_intensity: np.ndarray
-    dir_direction: np.ndarray
-    dir_irradiance: np.ndarray
-    emitter_corners: np.ndarray
-    emitter_count: np.ndarray
-    emitter_normal: np.ndarray
-    emitter_radiance: np.ndarray
-    emitter_area: np.ndarray
     offset: float
     samples: int = AREA_SAMPLES
-
-    @property
-    def light_args(self) -> tuple:
-        """The light arrays in the order of :func:`daskrad.kernels.direct.irradiance_one`."""
-        return (self.point_position, self.point_intensity, self.dir_direction,
-                self.dir_irradiance, self.emitter_corners, self.emitter_count,
-                self.emitter_normal, self.emitter_radiance, self.emitter_area)
 
     @property
     def empty(self) -> bool:
