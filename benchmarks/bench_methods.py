@@ -36,6 +36,7 @@ from PIL import Image, ImageDraw
 from daskrad import formfactor as ff
 from daskrad.mesh import build_hierarchy
 from daskrad.scene import load_scene
+from tests.helpers import grid, merge, square_above
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).parent / "results"
@@ -119,29 +120,6 @@ def tables():
 
 
 # --- (b) error against resolution ----------------------------------------------------------------
-
-def grid(origin, u, v, n=1):
-    s = np.linspace(0.0, 1.0, n + 1)
-    su, sv = np.meshgrid(s, s, indexing="ij")
-    verts = (np.asarray(origin, float) + su[..., None] * np.asarray(u, float)
-             + sv[..., None] * np.asarray(v, float)).reshape(-1, 3)
-    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-    a = (i * (n + 1) + j).ravel()
-    return verts, np.stack([a, a + n + 1, a + n + 2, a + 1], -1).astype(np.int32)
-
-
-def square_above(x0, x1, y0, y1, height, n=1):
-    return grid([x0, y0, height], [0, y1 - y0, 0], [x1 - x0, 0, 0], n)
-
-
-def merge(*parts):
-    verts, elems, off = [], [], 0
-    for v, e in parts:
-        verts.append(v)
-        elems.append(np.where(e >= 0, e + off, -1))
-        off += len(v)
-    return np.concatenate(verts), np.concatenate(elems).astype(np.int32)
-
 
 def lam(verts, elems):
     return ff.analytic_point_to_elements(ORIGIN, UP, verts, elems)

@@ -28,6 +28,7 @@ import pytest
 from daskrad import formfactor as ff
 from daskrad.errors import OptionError, SceneError
 from daskrad.kernels.hemisphere import disc_pixels
+from tests.helpers import closed_box, grid, merge, square_above, triangle_soup
 
 RESOLUTIONS = (64, 128, 256, 512)
 UP = np.array([0.0, 0.0, 1.0])
@@ -67,47 +68,7 @@ def disc(radius, height):
 
 
 # --- geometry builders -------------------------------------------------------------------------
-
-def grid(origin, u, v, n=1):
-    """An n × n grid of quads spanning ``origin + s u + t v``, lit side ``u × v``.
-
-    Returns ``vertices (V, 3)`` and ``elem_verts (n*n, 4) int32``. Grid coordinates come from
-    one ``linspace``, so grids meeting along an edge share bit-identical vertices.
-    """
-    s = np.linspace(0.0, 1.0, n + 1)
-    su, sv = np.meshgrid(s, s, indexing="ij")
-    verts = (np.asarray(origin, float) + su[..., None] * np.asarray(u, float)
-             + sv[..., None] * np.asarray(v, float)).reshape(-1, 3)
-    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-    a = (i * (n + 1) + j).ravel()
-    elems = np.stack([a, a + n + 1, a + n + 2, a + 1], axis=-1).astype(np.int32)
-    return verts, elems
-
-
-def merge(*parts):
-    verts, elems, offset = [], [], 0
-    for v, e in parts:
-        verts.append(v)
-        elems.append(np.where(e >= 0, e + offset, -1))
-        offset += len(v)
-    return np.concatenate(verts), np.concatenate(elems).astype(np.int32)
-
-
-def closed_box(n, size=1.0):
-    """The cube [0, size]³, each face an n × n grid, lit sides inwards."""
-    x, y, z = np.eye(3) * size
-    o = np.zeros(3)
-    return merge(
-        grid(o, x, y, n), grid(z, y, x, n),          # floor (+z), ceiling (-z)
-        grid(o, y, z, n), grid(x, z, y, n),          # x = 0 (+x), x = size (-x)
-        grid(o, z, x, n), grid(y, x, z, n),          # y = 0 (+y), y = size (-y)
-    )
-
-
-def square_above(x0, x1, y0, y1, height, n=1):
-    """A rectangle in the plane z = height facing down (towards a point below)."""
-    return grid([x0, y0, height], [0, y1 - y0, 0], [x1 - x0, 0, 0], n)
-
+# (grid, merge, closed_box, square_above: tests/helpers.py, shared with benchmarks/bench_methods.py)
 
 def fan_polygon(radius, height, sides):
     """A regular polygon inscribed in the circle of ``radius`` at ``height``, facing down, as a
@@ -423,13 +384,7 @@ def test_closed_box_agrees_with_lambert(rng):
 
 def test_random_scenes_never_exceed_one(rng):
     for _ in range(5):
-        n = 200
-        centres = rng.normal(size=(n, 3)) * 2
-        tris = centres[:, None, :] + rng.normal(size=(n, 3, 3)) * 0.7
-        verts = tris.reshape(-1, 3)
-        elems = np.column_stack([np.arange(3 * n).reshape(n, 3), -np.ones(n)]).astype(np.int32)
-        points = rng.normal(size=(3, 3))
-        normals = rng.normal(size=(3, 3))
+        verts, elems, points, normals = triangle_soup(rng, 200)
         won, covered, n_disc = ff.hemisphere_counts(points, normals, verts, elems, 128)
         assert (won.sum(1) <= n_disc).all()
         assert (won <= covered).all()

@@ -49,16 +49,8 @@ import pytest
 from daskrad import formfactor as ff
 from daskrad.kernels.hemicube import delta_form_factors
 from daskrad.kernels.hemisphere import disc_pixels
-from tests.test_formfactor import (
-    ORIGIN,
-    UP,
-    closed_box,
-    corner_rectangle,
-    merge,
-    projected_perimeter_px,
-    raster_bound,
-    square_above,
-)
+from tests.helpers import closed_box, grid, merge, square_above, triangle_soup
+from tests.test_formfactor import ORIGIN, UP, corner_rectangle, projected_perimeter_px, raster_bound
 
 R = 256
 METHODS = ("hemisphere", "hemisphere-itembuffer", "hemisphere-scanline", "hemicube", "raycast",
@@ -80,7 +72,6 @@ def tilted_quad():
 
 def wall(x, y0, y1, z0, z1):
     """A rectangle in the plane x = const facing -x (towards the origin)."""
-    from tests.test_formfactor import grid
     return grid([x, y0, z0], [0, 0, z1 - z0], [0, y1 - y0, 0])
 
 
@@ -348,13 +339,7 @@ def test_closed_box_with_an_occluder_sums_to_one(rng):
 @pytest.mark.parametrize("method", METHODS[:-1])
 def test_random_soups_never_exceed_one(rng, method):
     for _ in range(3):
-        n = 150
-        centres = rng.normal(size=(n, 3)) * 2
-        tris = centres[:, None, :] + rng.normal(size=(n, 3, 3)) * 0.7
-        verts = tris.reshape(-1, 3)
-        elems = np.column_stack([np.arange(3 * n).reshape(n, 3), -np.ones(n)]).astype(np.int32)
-        points = rng.normal(size=(3, 3))
-        normals = rng.normal(size=(3, 3))
+        verts, elems, points, normals = triangle_soup(rng, 150)
         f = ff.shooter_rows(points, normals, verts, elems, method, 64)
         assert (f >= 0).all()
         assert (f.sum(1) <= 1.0 + 1e-12).all()
