@@ -27,8 +27,10 @@ def _expected_floor_elements(x0, z0, size):
                for i in (0, 1) for j in (0, 1))
 
 
-def _refined():
-    scene = _blocker_scene()
+def _refine_direct(scene, rho):
+    """Refine ``scene``'s hierarchy under its direct light alone, reflected with ``rho`` (a
+    number; ``1.0`` leaves ``H`` bit-identical). Returns the refinement, ``H`` at the refined
+    vertices, the evaluate calls ``(start, stop, vertices, generation)`` and the context."""
     h = build_hierarchy(scene, 4.0, ELEMENT)
     tris, _, _ = hierarchy_triangles(h)
     ctx = direct.make_context(scene, h, build_grid(tris))
@@ -37,10 +39,14 @@ def _refined():
 
     def evaluate(h2, start, stop):
         calls.append((start, stop, len(h2.vertices), h2.generation))
-        return 0.5 * direct.compute(direct.with_hierarchy(ctx, h2), start, stop)  # ρ H
+        return rho * direct.compute(direct.with_hierarchy(ctx, h2), start, stop)  # ρ H
 
-    h2, H2, tv, levels = refine(h, 0.5 * H, evaluate, threshold=0.5, min_size=MIN_SIZE)
-    return h, h2, H2 / 0.5, tv, levels, calls, ctx
+    h2, H2, tv, levels = refine(h, rho * H, evaluate, threshold=0.5, min_size=MIN_SIZE)
+    return h, h2, H2 / rho, tv, levels, calls, ctx
+
+
+def _refined():
+    return _refine_direct(_blocker_scene(), 0.5)
 
 
 def test_subdivision_refines_around_the_shadow_and_nowhere_else():
@@ -103,18 +109,7 @@ def _refined_uniform():
     scene = scene_from_arrays(v, np.array([[0, 1, 2, 3]]), [0], diffuse=[[0.5] * 3],
                               emission=[[0, 0, 0]],
                               directional_lights=(np.array([[0.0, -1, 0]]), [[1.0] * 3]))
-    h = build_hierarchy(scene, 4.0, ELEMENT)
-    tris, _, _ = hierarchy_triangles(h)
-    ctx = direct.make_context(scene, h, build_grid(tris))
-    H = direct.compute(ctx, 0, len(h.vertices))
-    calls = []
-
-    def evaluate(h2, start, stop):
-        calls.append((start, stop))
-        return direct.compute(direct.with_hierarchy(ctx, h2), start, stop)
-
-    h2, H2, tv, levels = refine(h, H, evaluate, threshold=0.5, min_size=MIN_SIZE)
-    return h, h2, H2, tv, levels, calls, ctx
+    return _refine_direct(scene, 1.0)
 
 
 def test_triangles_split_in_four_sharing_midpoints():
