@@ -1,12 +1,15 @@
-"""Geometry builders shared by the form-factor tests and ``benchmarks/bench_methods.py``.
-
-Plain NumPy, no randomness of their own (a caller's ``rng`` is drawn from in a fixed order), so
-every caller gets the bit-identical arrays it built before these were shared.
+"""Helpers shared by several tests and ``benchmarks/bench_methods.py``: geometry builders
+(plain NumPy, no randomness of their own: a caller's ``rng`` is drawn from in a fixed order) and
+the render context of a solved scene.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from daskrad import solve
+from daskrad.run import _render_context, solve_scene
+from daskrad.settings import Settings
 
 
 def grid(origin, u, v, n=1):
@@ -64,3 +67,14 @@ def triangle_soup(rng, n):
     points = rng.normal(size=(3, 3))
     normals = rng.normal(size=(3, 3))
     return verts, elems, points, normals
+
+
+def render_context(scene, **opts):
+    """``(ctx, h)``: the render context of ``scene`` solved with ``opts`` over the defaults
+    patch 4, element 0.5, 1 sample per pixel, and its hierarchy."""
+    settings = Settings(**{"patch_size": 4.0, "element_size": 0.5, "spp": 1, **opts})
+    extra: dict = {}
+    h, refl, sol, (_, tri_verts, tri_elem, grid) = solve_scene(scene, settings, extra=extra)
+    amb = solve.ambient(h, refl, sol.unshot)
+    return _render_context(scene, settings, h, refl, sol, amb, extra,
+                           (tri_verts, tri_elem, grid), scene.camera), h

@@ -6,11 +6,10 @@ import math
 
 import numpy as np
 
-from daskrad import render, solve
+from daskrad import render
 from daskrad.formfactor import analytic_rows
-from daskrad.run import _render_context, solve_scene
 from daskrad.scene import Camera, scene_from_arrays
-from daskrad.settings import Settings
+from tests.helpers import render_context
 
 LIGHT = np.array([-0.35, 2.0, 0.15])
 INTENSITY = 3.0
@@ -30,15 +29,6 @@ def _blocker_scene(size=48):
     return scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7]]), [0, 1],
                              diffuse=[[RHO] * 3, [0.0] * 3], emission=[[0.0] * 3] * 2,
                              camera=cam, point_lights=(LIGHT[None], [[INTENSITY] * 3]))
-
-
-def _context(scene, **opts):
-    settings = Settings(**{"patch_size": 4.0, "element_size": 0.5, "spp": 1, **opts})
-    extra: dict = {}
-    h, refl, sol, (_, tri_verts, tri_elem, grid) = solve_scene(scene, settings, extra=extra)
-    amb = solve.ambient(h, refl, sol.unshot)
-    return _render_context(scene, settings, h, refl, sol, amb, extra,
-                           (tri_verts, tri_elem, grid), scene.camera), h
 
 
 def _render(ctx, tile=render.TILE):
@@ -85,7 +75,7 @@ def _near_edge(cls):
 
 def test_point_light_shadow_is_sharp_to_within_a_pixel():
     scene = _blocker_scene()
-    ctx, _ = _context(scene, rdiff=0.05)
+    ctx, _ = render_context(scene, rdiff=0.05)
     image, count = _render(ctx)
     exact, cls = _analytic(scene.camera)
     assert count > 0
@@ -98,7 +88,7 @@ def test_point_light_shadow_is_sharp_to_within_a_pixel():
     assert not (wrong & ~_near_edge(cls)).any()
     # the Gouraud image alone blurs the edge over whole elements: many pixels more than a
     # pixel away from the outline are wrong there (the test could fail)
-    plain, count0 = _render(_context(scene, per_pixel=False)[0])
+    plain, count0 = _render(render_context(scene, per_pixel=False)[0])
     assert count0 == 0
     wrong0 = ~np.isclose(plain[..., 0], exact, rtol=1e-9, atol=1e-12)
     assert (wrong0 & ~_near_edge(cls)).sum() > 20
@@ -106,9 +96,9 @@ def test_point_light_shadow_is_sharp_to_within_a_pixel():
 
 def test_no_qualifying_element_costs_nothing_and_changes_no_bit():
     scene = _blocker_scene(32)
-    plain, _ = _render(_context(scene, per_pixel=False)[0])
+    plain, _ = _render(render_context(scene, per_pixel=False)[0])
     # a threshold no element reaches: the plain context comes back, no pixel is recomputed
-    ctx, _ = _context(scene, rdiff=1e9)
+    ctx, _ = render_context(scene, rdiff=1e9)
     assert ctx.elem_perpixel is None and ctx.lights is None and not ctx.extras
     image, count = _render(ctx)
     assert count == 0
@@ -118,8 +108,8 @@ def test_no_qualifying_element_costs_nothing_and_changes_no_bit():
 def test_pass_changes_only_pixels_of_qualifying_elements():
     # the per-pixel path itself leaves every pixel of a non-qualifying element bit-identical
     scene = _blocker_scene(32)
-    plain, _ = _render(_context(scene, per_pixel=False)[0])
-    ctx, _ = _context(scene, rdiff=0.05)
+    plain, _ = _render(render_context(scene, per_pixel=False)[0])
+    ctx, _ = render_context(scene, rdiff=0.05)
     image, count = _render(ctx)
     o, d = render.primary_rays(ctx.camera, slice(0, 32), slice(0, 32), 1)
     from daskrad.kernels.grid import closest_hit
@@ -143,7 +133,7 @@ def test_area_light_per_pixel_is_exact_unoccluded_and_tile_independent():
     scene = scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7]]), [0, 1],
                               diffuse=[[RHO] * 3, [0.0] * 3], emission=[[0] * 3, [2.0] * 3],
                               camera=cam)
-    ctx, h = _context(scene, patch_size=2.0, element_size=0.5, rdiff=0.01, subdivide=0.0)
+    ctx, h = render_context(scene, patch_size=2.0, element_size=0.5, rdiff=0.01, subdivide=0.0)
     image, count = _render(ctx)
     assert count > 0
     o, d = render.primary_rays(cam, slice(0, 40), slice(0, 40), 1)

@@ -6,10 +6,9 @@ import math
 
 import numpy as np
 
-from daskrad import render, solve
-from daskrad.run import _render_context, solve_scene
+from daskrad import render
 from daskrad.scene import Camera, scene_from_arrays
-from daskrad.settings import Settings
+from tests.helpers import render_context
 
 FLOOR = np.array([[-2.0, 0, -2], [-2, 0, 2], [2, 0, 2], [2, 0, -2]])
 LIGHT = np.array([0.4, 1.5, 0.9])
@@ -18,12 +17,7 @@ KS, NS = 0.6, 30.0
 
 
 def _context(scene, **opts):
-    settings = Settings(**{"patch_size": 4.0, "element_size": 0.5, "spp": 1, **opts})
-    extra: dict = {}
-    h, refl, sol, (_, tri_verts, tri_elem, grid) = solve_scene(scene, settings, extra=extra)
-    amb = solve.ambient(h, refl, sol.unshot)
-    return _render_context(scene, settings, h, refl, sol, amb, extra,
-                           (tri_verts, tri_elem, grid), scene.camera)
+    return render_context(scene, **opts)[0]
 
 
 def _render(ctx):
