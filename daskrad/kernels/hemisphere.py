@@ -214,6 +214,15 @@ def _emit_edge(ax, ay, az, bx, by, bz, horizon, cos_thr, tab, xs, ys, m):
 
 
 @jit
+def project_scratch():
+    """The scratch of :func:`project_element`, allocated once per shot: ``cx, cy, cz (4,)``
+    float64 (the corners in the local frame), ``qx, qy, qz (5,)`` float64 and ``qclip (5,)``
+    bool (the clipped polygon: a quad cut by the horizon keeps at most 5 corners)."""
+    return (np.empty(4), np.empty(4), np.empty(4), np.empty(5), np.empty(5), np.empty(5),
+            np.zeros(5, dtype=np.bool_))
+
+
+@jit
 def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz, cos_thr, tab,
                     cx, cy, cz, qx, qy, qz, qclip, xs, ys):
     """Steps 2–5 for element ``e``: cull, clip at ``z = hz``, split edges, project.
@@ -441,13 +450,7 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
     for k in range(r * r):
         item[k] = -1
         zbuf[k] = -np.inf
-    qx = np.empty(5)
-    qy = np.empty(5)
-    qz = np.empty(5)
-    qclip = np.zeros(5, dtype=np.bool_)
-    cx = np.empty(4)
-    cy = np.empty(4)
-    cz = np.empty(4)
+    cx, cy, cz, qx, qy, qz, qclip = project_scratch()
     rq = np.empty(5)
     n_elem = elem_verts.shape[0]
     n_small = 0

@@ -38,6 +38,7 @@ from daskrad.kernels.hemisphere import (
     edge_capacity,
     local_frame,
     project_element,
+    project_scratch,
     split_table,
 )
 
@@ -72,13 +73,7 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz, n_li
     sp_l = np.empty(cap)
     sp_r = np.empty(cap)
     n_sp = 0
-    qx = np.empty(5)
-    qy = np.empty(5)
-    qz = np.empty(5)
-    qclip = np.zeros(5, dtype=np.bool_)
-    cx = np.empty(4)
-    cy = np.empty(4)
-    cz = np.empty(4)
+    cx, cy, cz, qx, qy, qz, qclip = project_scratch()
     n_elem = elem_verts.shape[0]
     for e in range(n_elem):
         m, mm, c = project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz,
