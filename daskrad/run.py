@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
@@ -297,18 +298,14 @@ def _executor(settings: Settings, store=None):
 
 def _camera(scene, settings: Settings):
     cam = scene.camera or render.default_camera(scene.bounds)
-    width = settings.width or cam.width
-    height = settings.height or cam.height
-    return type(cam)(eye=cam.eye, look_at=cam.look_at, up=cam.up, fov=cam.fov,
-                     width=width, height=height)
+    return dataclasses.replace(cam, width=settings.width or cam.width,
+                               height=settings.height or cam.height)
 
 
 class _Bar:
     """Progress: shots done and the relative unshot RMS against the tolerance (tqdm, stderr)."""
 
     def __init__(self, settings: Settings, enabled: bool):
-        self.enabled = enabled
-        self.tolerance = settings.tolerance
         self.bar = None
         if enabled:
             from tqdm import tqdm
