@@ -75,17 +75,10 @@ def test_power_balance_and_unshot_never_grows():
     scene = box_scene(size=(2.0, 1.0, 1.5), diffuse=rho, emission_per_face=emission)
     settings = Settings(patch_size=0.5, element_size=0.125, resolution=128, tolerance=1e-5,
                         max_iterations=50000, batch=4)
-    powers = []
-
-    def record(s):
-        # patch areas are those of the hierarchy; read them through the closure below
-        powers.append(float((s.unshot.sum(axis=1) * areas[0]).sum()))
-
-    areas = [None]
-    from daskrad.mesh import build_hierarchy
-
-    areas[0] = build_hierarchy(scene, settings.patch_size, settings.element_size).patch_area
-    h, refl, sol, _ = solve_scene(scene, settings, on_batch=record)
+    unshot = []
+    h, refl, sol, _ = solve_scene(scene, settings,
+                                  on_batch=lambda s: unshot.append(s.unshot.copy()))
+    powers = [float((u.sum(axis=1) * h.patch_area).sum()) for u in unshot]
     # unshot power Σ ΔB·A never grows from one batch to the next (ρ < 1, Σ F ≤ 1)
     assert len(powers) > 10
     assert all(b <= a * (1 + 1e-12) for a, b in zip(powers, powers[1:], strict=False))
