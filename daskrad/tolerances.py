@@ -50,3 +50,9 @@ COPLANAR = 1e-9
 #: a sliver) covers centres that are chord artefacts shared with its coplanar neighbours, where
 #: the item buffer's tie-break (lower index) made it lose whole pixels (furnace error 9.4 %).
 SUBPIXEL_AREA_PX = 1.0
+
+#: Two coordinates closer than this, relative to the points' magnitudes, tie when the raster
+#: orders an edge's endpoints (:func:`daskrad.kernels.geometry.lex_less`: round-off must not
+#: decide which end the polyline starts from). Defined beside the kernel, which imports
+#: nothing of the project.
+from daskrad.kernels.geometry import LEX_TIE  # noqa: E402, F401

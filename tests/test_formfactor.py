@@ -477,3 +477,16 @@ def test_to_sparse_round_trip(rng):
         dense[s, ids[indptr[s]:indptr[s + 1]]] = values[indptr[s]:indptr[s + 1]]
     np.testing.assert_array_equal(dense, rows)
     assert ids.dtype == np.int32 and (values > 0).all()
+
+
+def test_lex_less_lets_round_off_tie_and_the_next_coordinate_decide():
+    # the canonical end of an edge must not depend on round-off: endpoints whose first
+    # coordinates differ by an ulp (an edge perpendicular to the frame's first axis) are
+    # ordered by the second, either way round; a real difference still decides
+    from daskrad.kernels.geometry import lex_less
+
+    x = 555.7333333333333
+    assert lex_less(x, 1.0, 0.0, np.nextafter(x, 0.0), 2.0, 0.0)
+    assert not lex_less(np.nextafter(x, 0.0), 2.0, 0.0, x, 1.0, 0.0)
+    assert lex_less(x - 1e-6, 2.0, 0.0, x, 1.0, 0.0)
+    assert not lex_less(x, 1.0, 0.0, x, 1.0, 0.0)       # a point is not before itself
