@@ -47,26 +47,6 @@ BOX = Settings(two_pass=False, resolution=64, patch_size=0.25, element_size=0.12
                tolerance=1e-4, max_iterations=8000)
 
 
-#: Known failures (xfail, strict, in tests/test_stress.py), with what was measured and where
-#: the fix belongs.
-KNOWN_FAILURES = {
-    "non-manifold edge (fin)": "furnace error 1.3 %, 1.2 % above the bound E/(1-rho) (limit "
-    "1 %): column sums of F (sum_i F_ij A_i/A_j, 1 in a closed scene) reach 0.976 on the "
-    "fin's bottom row and 1.024 on wall elements whose line of sight to a shooter's centroid "
-    "just misses the fin's edge: visibility is point-sampled at the shooter's centroid for "
-    "every receiver, near or far (a brute-force check of such a pair: 0.00487 against "
-    "0.00410), so the fin's penumbra is missed; near-field changes cannot fix it. A prototype "
-    "with 8 x 8 stratified shadow rays between shooter and receiver gave 0.70 % at ~20x the "
-    "cost per shot; not adopted yet",
-    "units": "hemisphere_visibility (kernels/hemisphere.py) decides whether an element "
-    "covering no pixel centre is visible at the ONE pixel nearest its direction, "
-    "floor((x+1)·R/2): in the coarse Cornell box patch 33 (green wall, z = 466) sees floor "
-    "element 59 whose vertex mean is also at z = 466, exactly on a pixel boundary, and "
-    "round-off picks the pixel, so F_ij jumps between Lambert's 0.0016 and 0 with the scale; "
-    "measured image difference 1.2e-3 (x1e-3) and 2.6e-3 (x1e3) per pixel, limit 1e-4",
-}
-
-
 @dataclass
 class Result:
     """One measured figure of a case: ``error`` must be ``<= limit`` (``ok``)."""

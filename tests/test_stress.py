@@ -42,24 +42,15 @@ def _safety_ok(results, furnace: bool):
 # --- 1. degenerate geometry -----------------------------------------------------------------
 
 DEGENERATE = sc.degenerate_scenes()
-#: Cases that are wrong today, with the measured failure (stress_cases.KNOWN_FAILURES).
-DEGENERATE_XFAIL = {c: sc.KNOWN_FAILURES[c] for c in ("non-manifold edge (fin)",)}
-
-
 @pytest.mark.parametrize("case", [c for c in DEGENERATE if c != "flipped normal"])
 def test_degenerate_geometry_keeps_the_invariants(case):
     # finite, non-negative radiosity; unshot power never grows; the energy ledger holds to
     # 1e-3 (measured: round-off, < 1e-14); B within the bound (furnace: within its 1 %)
     results = sc.safety(case, DEGENERATE[case])
-    if case in DEGENERATE_XFAIL:  # the bound is what fails there: see the furnace test
-        results = [r for r in results if not r.quantity.startswith("max B")]
     _safety_ok(results, furnace=True)
 
 
-@pytest.mark.parametrize("case", [
-    pytest.param(c, marks=pytest.mark.xfail(strict=True, reason=DEGENERATE_XFAIL[c]))
-    if c in DEGENERATE_XFAIL else c
-    for c in DEGENERATE if c != "flipped normal"])
+@pytest.mark.parametrize("case", [c for c in DEGENERATE if c != "flipped normal"])
 def test_degenerate_geometry_in_a_furnace_gives_E_over_one_minus_rho(case):
     # every face (the degenerate ones too) emits E = 1 and reflects 0.5 in a closed box:
     # B = 2 everywhere whatever the shape; 1 % as for the plain furnace (test_solve.py)

@@ -43,12 +43,14 @@ class InProcess:
 
     def __init__(self, shoot_ctx: shoot.ShootContext | None = None):
         self.shoot_ctx = shoot_ctx
+        self.rows = shoot.RowCache()
 
     def set_geometry(self, shoot_ctx: shoot.ShootContext, generation: int = 0) -> None:
         self.shoot_ctx = shoot_ctx
+        self.rows = shoot.RowCache()
 
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Done:
-        return _Done(shoot.shoot_rows(self.shoot_ctx, patch_ids))
+        return _Done(shoot.shoot_rows(self.shoot_ctx, patch_ids, self.rows))
 
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
         return [render.render_tile(ctx, rows, cols) for rows, cols in tiles]

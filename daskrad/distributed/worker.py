@@ -24,6 +24,7 @@ from daskrad.distributed.store import load_context
 CACHE_SIZE = 4
 
 _cache: OrderedDict = OrderedDict()
+_rows: OrderedDict = OrderedDict()  # (path, generation, token) → shoot.RowCache
 _lock = threading.Lock()          # a worker with several threads loads a context once
 loads = 0                         # contexts read from a store by this process (tests look)
 
@@ -46,8 +47,16 @@ def context(path: str, kind: str, generation: int, token: str):
 
 
 def shoot_task(path: str, generation: int, token: str, patch_ids: np.ndarray) -> list:
-    """Form-factor rows of the shooters ``patch_ids`` (:func:`daskrad.shoot.shoot_rows`)."""
-    return shoot.shoot_rows(context(path, "shoot", generation, token), patch_ids)
+    """Form-factor rows of the shooters ``patch_ids`` (:func:`daskrad.shoot.shoot_rows`), with
+    the rows this process already computed for that geometry."""
+    key = (path, generation, token)
+    with _lock:
+        rows = _rows.get(key)
+        if rows is None:
+            rows = _rows[key] = shoot.RowCache()
+            while len(_rows) > 1:           # only the current geometry shoots
+                _rows.popitem(last=False)
+    return shoot.shoot_rows(context(path, "shoot", generation, token), patch_ids, rows)
 
 
 def tile_task(path: str, generation: int, token: str, r0: int, r1: int, c0: int, c1: int
@@ -76,4 +85,6 @@ def probe(path: str, kind: str, token: str) -> str | None:
 
 def state() -> dict:
     """This process's pid and cache statistics (tests and benchmarks call it via client.run)."""
-    return {"pid": os.getpid(), "loads": loads, "cached": len(_cache)}
+    rows = next(iter(_rows.values()), None)
+    return {"pid": os.getpid(), "loads": loads, "cached": len(_cache),
+            "row_hits": rows.hits if rows else 0, "row_misses": rows.misses if rows else 0}

@@ -1,0 +1,137 @@
+"""Which shooters have an occluder close enough to cast a penumbra their centroid cannot see.
+
+A form factor whose visibility is sampled at the shooter's centroid puts every receiver either
+in light or in shadow; the true visibility from an area shooter of radius ``r`` past an edge at
+distance ``d`` has a penumbra ``~ r/d`` radians wide. The solver samples the shooter at more
+points where ``d`` is a few ``r`` or less (:func:`daskrad.shoot.shooter_points`); this kernel
+finds ``d`` for one shooter.
+
+An element ``b`` can block a segment from a shooter point ``s`` to a receiver point ``x`` only
+if ``s`` and ``x`` lie strictly on opposite sides of ``b``'s plane. So ``b`` counts when it
+lies (partly) in front of the shooter, the shooter reaches strictly to one side of ``b``'s
+plane, and the scene reaches strictly to the other (``sides``, per polygon). A closed convex
+room has no blockers at all: every wall's plane has the whole scene on its front side.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from daskrad.kernels._jit import jit
+
+#: ``sides`` bits: the scene has points strictly in front of / behind a polygon's plane;
+#: ``UNKNOWN`` until the polygon is first met as a candidate blocker.
+FRONT = 1
+BEHIND = 2
+UNKNOWN = -1
+
+
+@jit
+def plane_sides(vertices, point, normal, eps):
+    """``FRONT | BEHIND`` bits: on which sides of the plane (``point``, ``normal``) some of
+    ``vertices : (V, 3)`` lie by more than ``eps``. Stops as soon as both are found."""
+    flags = 0
+    for k in range(vertices.shape[0]):
+        d = ((vertices[k, 0] - point[0]) * normal[0] + (vertices[k, 1] - point[1]) * normal[1]
+             + (vertices[k, 2] - point[2]) * normal[2])
+        if d > eps:
+            flags |= FRONT
+        elif d < -eps:
+            flags |= BEHIND
+        if flags == FRONT | BEHIND:
+            break
+    return flags
+
+
+@jit
+def _distance_in_plane(px, py, pz, corners, normal):
+    """Distance from a point in a convex polygon's plane to the polygon (0 inside);
+    ``corners : (k, 3)`` in order, ``normal`` the polygon's."""
+    k = corners.shape[0]
+    inside = True
+    best = np.inf
+    for a in range(k):
+        b = (a + 1) % k
+        ex = corners[b, 0] - corners[a, 0]
+        ey = corners[b, 1] - corners[a, 1]
+        ez = corners[b, 2] - corners[a, 2]
+        qx = px - corners[a, 0]
+        qy = py - corners[a, 1]
+        qz = pz - corners[a, 2]
+        # left of every edge (seen along the normal) is inside
+        if (ey * qz - ez * qy) * normal[0] + (ez * qx - ex * qz) * normal[1] \
+                + (ex * qy - ey * qx) * normal[2] < 0.0:
+            inside = False
+        t = (qx * ex + qy * ey + qz * ez) / max(ex * ex + ey * ey + ez * ez, 1e-300)
+        t = min(max(t, 0.0), 1.0)
+        dx = qx - t * ex
+        dy = qy - t * ey
+        dz = qz - t * ez
+        best = min(best, np.sqrt(dx * dx + dy * dy + dz * dz))
+    return 0.0 if inside else best
+
+
+@jit
+def nearest_blocker(corners, centroid, normal, polygon, vertices, elem_verts,
+                    elem_centroid, elem_normal, elem_radius, elem_polygon, sides, eps, grazing):
+    """Distance from a shooter's centroid to the nearest element that may occlude some receiver
+    from some point of the shooter (``inf`` when none can), less that element's radius.
+
+    ``corners : (k, 3)`` the shooter's corners (a convex polygon), ``centroid, normal : (3,)``,
+    ``polygon`` its input polygon (whose elements never block it); ``vertices : (V, 3)`` the
+    scene's; element arrays as in the hierarchy, ``elem_radius : (E,)`` the largest
+    centroid-to-corner distance; ``sides : (Q,) int8`` per polygon, ``UNKNOWN`` or
+    :func:`plane_sides`, filled in here as polygons are met (a pure function of the geometry:
+    racing threads write the same value);
+    ``eps`` a length (the scene's coplanarity tolerance). An element whose corners rise above
+    the shooter's plane by an elevation ``θ`` with ``sin²θ < grazing`` from every point of the
+    shooter blocks only directions that carry less than ``grazing`` of a cosine-weighted
+    hemisphere (a slightly folded wall is not an occluder).
+    """
+    best = np.inf
+    for j in range(elem_centroid.shape[0]):
+        if elem_polygon[j] == polygon:
+            continue
+        dx = elem_centroid[j, 0] - centroid[0]
+        dy = elem_centroid[j, 1] - centroid[1]
+        dz = elem_centroid[j, 2] - centroid[2]
+        dist = np.sqrt(dx * dx + dy * dy + dz * dz) - elem_radius[j]
+        if dist >= best:
+            continue
+        # in front of the shooter, and not just grazing its plane
+        rises = False
+        for k in range(4):
+            v = elem_verts[j, k]
+            if v < 0:
+                break
+            hx = vertices[v, 0] - centroid[0]
+            hy = vertices[v, 1] - centroid[1]
+            hz = vertices[v, 2] - centroid[2]
+            height = hx * normal[0] + hy * normal[1] + hz * normal[2]
+            if height <= eps:
+                continue
+            # the corner's foot on the shooter's plane, and its distance to the shooter
+            across = _distance_in_plane(vertices[v, 0] - height * normal[0],
+                                        vertices[v, 1] - height * normal[1],
+                                        vertices[v, 2] - height * normal[2], corners, normal)
+            if height * height > grazing * (height * height + across * across):
+                rises = True
+                break
+        if not rises:
+            continue
+        lo = np.inf
+        hi = -np.inf
+        for k in range(corners.shape[0]):
+            d = ((corners[k, 0] - elem_centroid[j, 0]) * elem_normal[j, 0]
+                 + (corners[k, 1] - elem_centroid[j, 1]) * elem_normal[j, 1]
+                 + (corners[k, 2] - elem_centroid[j, 2]) * elem_normal[j, 2])
+            lo = min(lo, d)
+            hi = max(hi, d)
+        if hi <= eps and lo >= -eps:
+            continue                               # coplanar with the shooter
+        g = elem_polygon[j]
+        if sides[g] == UNKNOWN:
+            sides[g] = plane_sides(vertices, elem_centroid[j], elem_normal[j], eps)
+        if (hi > eps and sides[g] & BEHIND) or (lo < -eps and sides[g] & FRONT):
+            best = max(dist, 0.0)
+    return best
