@@ -5,7 +5,8 @@ Scene: the Cornell box with 7-unit elements (~59,000 elements, 251 patches), emi
 like any patch (no direct pass, so only the form-factor futures are timed). ``N`` shots in
 batches of ``K = 8``; ``T(C)`` is the wall time of :func:`daskrad.solve.solve` on a
 LocalCluster of ``C`` single-threaded processes after every worker has loaded the geometry
-(the per-process cache) and its numba kernels; C = 1 and C = 2 alternate, best of three.
+(the per-process cache) and its numba kernels, with no form-factor row kept from an earlier
+run (``worker.forget_rows``); C = 1 and C = 2 alternate, best of three.
 
 Shares, from Dask's task stream and the executor's own clock:
 
@@ -89,6 +90,7 @@ def measure(executor, h, reflectance, emission, repeat: int) -> dict:
     from distributed import get_task_stream
 
     executor.stats.update(wait=0.0, tasks=0)
+    executor.client.run(worker.forget_rows)   # every repeat computes its rows afresh
     sol = solve.initial_solution(h, emission)
     with get_task_stream(client=executor.client) as stream:
         t = time.perf_counter()

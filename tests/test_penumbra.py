@@ -167,3 +167,38 @@ def test_row_cache_gives_the_bits_of_a_recomputation_within_its_budget():
     assert small.nbytes <= budget
     shoot.shoot_rows(ctx, ids[-3:], small)
     assert small.hits == 3
+
+
+def test_points_under_a_block_standing_on_the_shooter_are_dropped():
+    # a floor (one patch, facing +z) with a closed block standing on it (four sides and a top,
+    # facing out, no bottom), and a card high above: sample points of the floor under the block
+    # are enclosed (every probe ray meets a face from behind) and are dropped; the rest keep
+    # their area weights, renormalised
+    from daskrad.scene.validate import scene_from_arrays
+
+    lo, hi, top = np.array([0.5, 0.2]), np.array([0.8, 0.8]), 0.3
+    x0, y0, x1, y1 = *lo, *hi
+    v = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]                        # floor
+    v += [[x0, y0, 0], [x1, y0, 0], [x1, y1, 0], [x0, y1, 0],               # block base
+          [x0, y0, top], [x1, y0, top], [x1, y1, top], [x0, y1, top]]       # block top
+    v += [[0, 0, 2], [0, 1, 2], [1, 1, 2], [1, 0, 2]]                       # card, facing -z
+    b = 4
+    polys = [[0, 1, 2, 3],
+             [b + 4, b + 5, b + 6, b + 7],                                  # top, +z
+             [b + 0, b + 1, b + 5, b + 4], [b + 1, b + 2, b + 6, b + 5],     # sides, outwards
+             [b + 2, b + 3, b + 7, b + 6], [b + 3, b + 0, b + 4, b + 7],
+             [12, 13, 14, 15]]
+    scene = scene_from_arrays(np.array(v, float), np.array(polys), np.zeros(7, int),
+                              [[0.5] * 3], [[1.0] * 3])
+    h, ctx = _context(scene, patch=1.0, element=0.25)
+    floor = int(np.flatnonzero(h.patch_polygon == 0)[0])
+    corners = h.vertices[shoot._corners(h.patch_verts[floor])]
+    bary = shoot.PENUMBRA[0][1]
+    every = np.concatenate([bary @ corners[[0, 1, 2]], bary @ corners[[0, 2, 3]]])
+    under = np.all((every[:, :2] > lo) & (every[:, :2] < hi), axis=1)
+    assert 0 < under.sum() < len(every)
+    points, weights = shoot.shooter_points(ctx, floor)
+    kept = {tuple(np.round(q, 12)) for q in points}
+    assert kept == {tuple(np.round(q, 12)) for q in every[~under]}
+    assert weights.sum() == pytest.approx(1.0, abs=1e-15)
+    np.testing.assert_allclose(weights, weights[0])   # the two triangles have equal areas

@@ -59,6 +59,13 @@ def shoot_task(path: str, generation: int, token: str, patch_ids: np.ndarray) ->
     return shoot.shoot_rows(context(path, "shoot", generation, token), patch_ids, rows)
 
 
+def forget_rows() -> None:
+    """Drop this process's cached form-factor rows (a benchmark timing the form-factor work of
+    repeated runs of one geometry calls it on every worker with ``client.run``)."""
+    with _lock:
+        _rows.clear()
+
+
 def tile_task(path: str, generation: int, token: str, r0: int, r1: int, c0: int, c1: int
               ) -> np.ndarray:
     """Radiance of the pixels ``[r0, r1) × [c0, c1)`` (:func:`daskrad.render.render_tile`)."""

@@ -296,6 +296,14 @@ def _element_grid(vertices, elem_verts):
     return grid
 
 
+def element_grid(vertices, elem_verts):
+    """``(grid, tri_elem)``: the voxel grid over the elements' triangles (cached, see
+    :func:`_element_grid`) and ``tri_elem : (T,) int64``, the element of each triangle."""
+    quad = np.flatnonzero(elem_verts[:, 3] >= 0)
+    return (_element_grid(vertices, elem_verts),
+            np.concatenate([np.arange(len(elem_verts)), quad]))
+
+
 def raycast_rows(points, normals, vertices, elem_verts, resolution=None, samples=2,
                  **options):
     """``(S, E) float64``: Wallace et al.'s ray-cast form factor (receiver vertices).
