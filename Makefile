@@ -21,23 +21,31 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install -q -e '.[test]'
 	touch $(STAMP)
 
+# numba's on-disk cache does not notice an edit to a kernel that another file's kernel calls
+# (STACK.md), so every cached kernel is dropped whenever a kernel file is newer than this stamp.
+KERNELS := $(wildcard daskrad/kernels/*.py)
+NUMBA_STAMP := $(VENV)/.kernels
+$(NUMBA_STAMP): $(KERNELS) $(STAMP)
+	find daskrad -name '*.nbi' -delete -o -name '*.nbc' -delete
+	touch $@
+
 install: $(STAMP) ## create .venv and install daskrad (editable) with test tools
 
-test: $(STAMP) ## run the test suite (fast cases; the long stress cases are `make stress`)
+test: $(NUMBA_STAMP) ## run the test suite (fast cases; the long stress cases are `make stress`)
 	$(BIN)/python -m pytest -q -m "not slow"
 
 lint: $(STAMP) ## ruff and the import-linter layering contracts
 	$(BIN)/ruff check daskrad tests benchmarks
 	$(BIN)/lint-imports
 
-bench: $(STAMP) ## run the benchmarks; tables on stdout, JSON in benchmarks/results/
+bench: $(NUMBA_STAMP) ## run the benchmarks; tables on stdout, JSON in benchmarks/results/
 	$(BIN)/python -m benchmarks
 
-stress: $(STAMP) ## the numerical stress suite (long cases included) and its report table
+stress: $(NUMBA_STAMP) ## the numerical stress suite (long cases included) and its report table
 	$(BIN)/python -m pytest -q tests/test_stress.py
 	$(BIN)/python -m benchmarks.bench_stress
 
-run: $(STAMP) ## render the bundled Cornell box (SCENE=, OUT=, WORKERS=N to change)
+run: $(NUMBA_STAMP) ## render the bundled Cornell box (SCENE=, OUT=, WORKERS=N to change)
 	mkdir -p $(dir $(OUT))
 	$(BIN)/daskrad run $(SCENE) -o $(OUT) $(if $(WORKERS),--workers $(WORKERS))
 
