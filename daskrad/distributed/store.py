@@ -98,7 +98,7 @@ class Store:
             self._reopen()
         else:
             self.group = zarr.open_group(self.path, mode="w")
-            self.group.attrs.update({
+            self.group.update_attributes({
                 "format": FORMAT, "settings": _jsonable(self.settings.as_dict()),
                 "generation": -1, "iteration": 0, "converged": False, "history": []})
         return self
@@ -154,7 +154,7 @@ class Store:
         _put(el, "reflectance", reflectance, np.float32)
         pa = g.require_group("patches")
         _put(pa, "polygon", h.patch_polygon, np.int32)
-        g.attrs.update({"generation": int(h.generation), "n_elements": h.n_elements,
+        g.update_attributes({"generation": int(h.generation), "n_elements": h.n_elements,
                         "n_patches": h.n_patches})
 
     # --- checkpoints ----------------------------------------------------------------------
@@ -172,9 +172,11 @@ class Store:
                  "converged": bool(sol.converged), "history": _jsonable(sol.history),
                  "queued": _jsonable(sol.queued)}
         s.attrs.put(state)
-        # only now is the slot complete: name it (one atomic zarr.json replacement)
-        g.attrs.update({"checkpoint": slot, "iteration": state["iteration"],
-                        "converged": state["converged"], "history": state["history"]})
+        # only now is the slot complete: name it (one atomic zarr.json replacement; not
+        # attrs.update, which zarr 3 writes key by key: a client killed between two keys left
+        # "checkpoint" naming this slot beside the previous iteration and history)
+        g.update_attributes({"iteration": state["iteration"], "converged": state["converged"],
+                             "history": state["history"], "checkpoint": slot})
         self._slot = slot
         _put(g, "elements/radiosity", sol.radiosity, np.float32)
         _put(g, "elements/direct", sol.direct, np.float32)
@@ -200,7 +202,7 @@ class Store:
         """``vertex_radiosity (V, 3)``: B at the vertices as the image shows it (after the
         final checkpoint, which :class:`~daskrad.distributed.monitor.Watch` writes)."""
         _put(self.group, "vertex_radiosity", vertex_radiosity, np.float32)
-        self.group.attrs.update({"complete": True})
+        self.group.update_attributes({"complete": True})
 
     # --- task contexts --------------------------------------------------------------------
 
