@@ -175,3 +175,38 @@ def test_a_checkpoint_names_its_slot_in_one_write_of_the_root_metadata(tmp_path,
     assert len(seen) == 1
     assert (seen[0]["checkpoint"], seen[0]["iteration"], seen[0]["history"]) == (
         0, 8, [[8, 0.5, 1.0]])
+
+
+def test_ctrl_c_during_a_store_write_waits_for_it_to_finish(tmp_path, monkeypatch):
+    # SIGINT arriving while zarr writes (here: at the first file a checkpoint replaces) is
+    # held until the checkpoint is complete, then raised: the slot is named, nothing is left
+    # half-written and no zarr task is abandoned
+    import os
+
+    from daskrad import solve
+    from daskrad.mesh import build_hierarchy
+    from daskrad.scene import box_scene
+
+    h = build_hierarchy(box_scene(emission_per_face=1.0), 0.5, 0.5)
+    store = Store(tmp_path / "s.zarr", Settings()).open()
+    sol = store.begin(h, np.full((h.n_elements, 3), 0.5),
+                      solve.initial_solution(h, np.ones((h.n_elements, 3))))
+    sol.iteration, sol.history = 8, [(8, 0.5, 1.0)]
+    replace = Path.replace
+    sent = []
+
+    def interrupting(self, target):
+        if not sent:
+            sent.append(True)
+            os.kill(os.getpid(), signal.SIGINT)
+        return replace(self, target)
+
+    monkeypatch.setattr(Path, "replace", interrupting)
+    with pytest.raises(KeyboardInterrupt):
+        store.checkpoint(sol)
+    assert sent
+    monkeypatch.setattr(Path, "replace", replace)
+    attrs = _root_attrs(tmp_path / "s.zarr")
+    assert (attrs["checkpoint"], attrs["iteration"]) == (0, 8)
+    assert store.load_checkpoint(h).iteration == 8
+    assert not list((tmp_path / "s.zarr").rglob("*.partial"))
