@@ -57,14 +57,14 @@ def test_the_fin_is_an_occluder_for_the_floor_beside_it_and_not_for_the_far_ceil
     assert len(floor) == 4          # the floor patches touching the fin's foot, both sides
     for p in floor:
         assert _blocker_distance(ctx, p) < 0.5       # its foot touches the patch
-        assert len(shoot.shooter_points(ctx, p)[0]) == 2 * len(shoot.PENUMBRA[0][1])  # 2 triangles
-    # a ceiling corner patch: the fin (top at y = 0.4) is 3.9 radii away (the coarser set of
-    # points), and farther than 4 when the patches are halved (the centroid alone)
+        assert len(shoot.shooter_points(ctx, p)[0]) == 2 * len(shoot.SHOOTER_POINTS)  # 2 tri.
+    # a ceiling corner patch: the fin (top at y = 0.4) is 3.9 radii away (sampled), and
+    # farther than 4 when the patches are halved (the centroid alone)
     corner = np.flatnonzero((h.patch_centroid[:, 1] > 1 - 1e-12)
                             & (np.linalg.norm(h.patch_centroid[:, [0, 2]] - 0.125, axis=1)
                                < 1e-9))
     assert len(corner) == 1
-    assert len(shoot.shooter_points(ctx, corner[0])[0]) == 2 * len(shoot.PENUMBRA[1][1])
+    assert len(shoot.shooter_points(ctx, corner[0])[0]) == 2 * len(shoot.SHOOTER_POINTS)
     h, ctx = _context(sc.degenerate_scenes()["non-manifold edge (fin)"], 0.125, 0.0625)
     corner = np.flatnonzero((h.patch_centroid[:, 1] > 1 - 1e-12)
                             & (np.linalg.norm(h.patch_centroid[:, [0, 2]] - 0.0625, axis=1)
@@ -124,7 +124,7 @@ def test_sampling_the_shooter_brings_fin_rows_closer_to_area_to_area_visibility(
     # reference: the area-averaged form factor from the floor patch beside the fin, by
     # raycasting (6² rays per point) from 4² points per triangle of the patch; the row from the
     # centroid alone misses the fin's penumbra on the far wall and floor, the sampled row
-    # follows it. Measured L1 distance to the reference: 0.052 (centroid), 0.016 (sampled),
+    # follows it. Measured L1 distance to the reference: 0.038 (centroid), 0.0083 (sampled),
     # limit: half the centroid's
     h, ctx = _context(sc.degenerate_scenes()["non-manifold edge (fin)"])
     p = int(np.flatnonzero((np.abs(h.patch_centroid[:, 1]) < 1e-12)
@@ -193,7 +193,7 @@ def test_points_under_a_block_standing_on_the_shooter_are_dropped():
     h, ctx = _context(scene, patch=1.0, element=0.25)
     floor = int(np.flatnonzero(h.patch_polygon == 0)[0])
     corners = h.vertices[shoot._corners(h.patch_verts[floor])]
-    bary = shoot.PENUMBRA[0][1]
+    bary = shoot.SHOOTER_POINTS
     every = np.concatenate([bary @ corners[[0, 1, 2]], bary @ corners[[0, 2, 3]]])
     under = np.all((every[:, :2] > lo) & (every[:, :2] < hi), axis=1)
     assert 0 < under.sum() < len(every)
