@@ -78,10 +78,11 @@ PENUMBRA = 4.0
 #: the same fractions, and exact alignments are where round-off breaks ties in the raster.
 SHOOTER_POINTS = _cyclic(0.6180, 0.2134)
 
-#: An occluder that rises above the shooter's plane by an elevation of less than
-#: ``asin(√GRAZING)`` (1.8°) is ignored by that test: it hides at most this fraction of the
-#: shooter's cosine-weighted hemisphere. The measured Cornell box's red wall is folded by
-#: about 0.3°, and without this its two triangles would count as occluders of each other.
+#: An element folded away from the shooter by a dihedral angle of less than ``asin(√GRAZING)``
+#: (1.8°), passing below the shooter's plane over the shooter, is not an occluder: seen from
+#: any point of the shooter it rises less than that, hiding at most this fraction of the
+#: cosine-weighted hemisphere. The measured Cornell box's red wall is two triangles folded by
+#: about 0.3°, which would otherwise count as occluders of each other.
 GRAZING = 1e-3
 
 
@@ -92,8 +93,8 @@ class ShootContext:
     Shapes follow :class:`daskrad.mesh.types.Hierarchy`; ``patch_radius : (P,)`` and
     ``elem_radius : (E,)`` are the largest distances from a centroid to the corners,
     ``polygon_sides : (Q,) int8`` where the scene lies about each polygon's plane, filled in
-    lazily (:func:`daskrad.kernels.blockers.nearest_blocker`), ``eps`` the coplanarity
-    tolerance (a length).
+    lazily (:func:`daskrad.kernels.blockers.nearest_blocker`), ``polygon_two_sided : (Q,) bool``
+    (:func:`two_sided_polygons`), ``eps`` the coplanarity tolerance (a length).
     """
 
     vertices: np.ndarray
@@ -110,6 +111,7 @@ class ShootContext:
     patch_radius: np.ndarray
     elem_radius: np.ndarray
     polygon_sides: np.ndarray
+    polygon_two_sided: np.ndarray
     eps: float
     method: str
     resolution: int
@@ -123,6 +125,7 @@ def make_context(h: Hierarchy, method: str, resolution: int, **options) -> Shoot
         v = np.where(verts < 0, verts[:, 2:3], verts)
         return np.linalg.norm(h.vertices[v] - centroid[:, None, :], axis=2).max(axis=1)
 
+    eps = tolerances.COPLANAR * scene_diagonal(h.vertices)
     return ShootContext(
         vertices=h.vertices, elem_verts=h.elem_verts, elem_area=h.elem_area,
         elem_centroid=h.elem_centroid, elem_normal=h.elem_normal, elem_polygon=h.elem_polygon,
@@ -131,7 +134,7 @@ def make_context(h: Hierarchy, method: str, resolution: int, **options) -> Shoot
         patch_radius=radius(h.patch_verts, h.patch_centroid),
         elem_radius=radius(h.elem_verts, h.elem_centroid),
         polygon_sides=np.full(len(h.polygon_material), UNKNOWN, np.int8),
-        eps=tolerances.COPLANAR * scene_diagonal(h.vertices),
+        polygon_two_sided=two_sided_polygons(h, eps), eps=eps,
         method=method, resolution=resolution, options=dict(options),
     )
 
@@ -163,32 +166,75 @@ def shooter_points(ctx: ShootContext, p: int) -> tuple[np.ndarray, np.ndarray]:
     return points, weights
 
 
-#: Directions probed by :func:`_enclosed`: the normal and four at 60° from it.
-_PROBES = np.array([[0.0, 0.0, 1.0]] + [[0.5 * np.sqrt(3) * a, 0.5 * np.sqrt(3) * b, 0.5]
-                                        for a, b in ((1, 0), (-1, 0), (0, 1), (0, -1))])
+def _probes() -> np.ndarray:
+    """``(13, 3)`` directions probed by :func:`_enclosed`, in the shooter's frame: the normal,
+    4 at 60° from it and 8 at 85° (so that a point under an overhang open at the sides sees
+    out)."""
+    out = [[0.0, 0.0, 1.0]]
+    for polar, n in ((60.0, 4), (85.0, 8)):
+        t = np.radians(polar)
+        for k in range(n):
+            a = 2.0 * np.pi * k / n
+            out.append([np.sin(t) * np.cos(a), np.sin(t) * np.sin(a), np.cos(t)])
+    return np.array(out)
+
+
+_PROBES = _probes()
 
 
 def _enclosed(ctx: ShootContext, points: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """``(k,) bool``: points of a shooter inside a closed object, where every probe ray first
-    meets the back of a face (the floor under a block standing on it).
+    meets the back of a one-sided face (the floor under a block standing on it).
 
-    No light reaches such a point, so none of the patch's energy is there, yet one-sided
-    faces seen from behind do not occlude (a flipped face is a hole): shot from there, it would
-    go through the block into the room (measured on the Cornell box: the blocks' faces by the
-    floor 14 % too dark, the floor patches partly under a block shooting past them).
+    Light arrives at a point from a direction only if the first face that way faces the point:
+    a face seen from behind is a front face for the light coming towards the point, and stops
+    it. So no light, hence none of the patch's energy, is at such a point; yet shot from there
+    it would go out through the block (one-sided faces seen from behind do not occlude: a
+    flipped face is a hole). Measured on the Cornell box: the blocks' faces by the floor 14 %
+    too dark, the floor patches partly under a block shooting past them. A two-sided face (two
+    coincident faces, :func:`two_sided_polygons`) always faces the point.
     """
     grid, tri_elem = formfactor.element_grid(ctx.vertices, ctx.elem_verts)
     t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(*normal)
     frame = np.array([[t1x, t1y, t1z], [t2x, t2y, t2z], normal])
-    dirs = _PROBES @ frame                                     # (5, 3) world directions
+    dirs = _PROBES @ frame                                     # (13, 3) world directions
     lift = tolerances.RAY_OFFSET * scene_diagonal(ctx.vertices)
     origins = np.repeat(points + lift * normal, len(dirs), axis=0)
     d = np.tile(dirs, (len(points), 1))
     _, tri, _, _ = closest_hit(grid, origins, d, 0.0, np.inf)
     back = np.zeros(len(tri), bool)
     hit = tri >= 0
-    back[hit] = np.einsum("ij,ij->i", ctx.elem_normal[tri_elem[tri[hit]]], d[hit]) > 0.0
+    elem = tri_elem[tri[hit]]
+    back[hit] = ((np.einsum("ij,ij->i", ctx.elem_normal[elem], d[hit]) > 0.0)
+                 & ~ctx.polygon_two_sided[ctx.elem_polygon[elem]])
     return back.reshape(len(points), len(dirs)).all(axis=1)
+
+
+def two_sided_polygons(h: Hierarchy, eps: float) -> np.ndarray:
+    """``(Q,) bool``: polygons with a coincident twin facing the other way (a two-sided face
+    given as two, as OBJ files do): same element bounding box and area to ``eps``, opposite
+    normals. Which of the two a ray meets first is round-off, so neither counts as a back."""
+    q = len(h.polygon_material)
+    corners = h.vertices[np.where(h.elem_verts < 0, h.elem_verts[:, :1], h.elem_verts)]
+    lo = np.full((q, 3), np.inf)
+    hi = np.full((q, 3), -np.inf)
+    np.minimum.at(lo, h.elem_polygon, corners.min(axis=1))
+    np.maximum.at(hi, h.elem_polygon, corners.max(axis=1))
+    area = np.bincount(h.elem_polygon, h.elem_area, minlength=q)
+    normal = np.zeros((q, 3))
+    normal[h.patch_polygon] = h.patch_normal
+    used = np.isfinite(lo[:, 0])
+    key = np.round(np.column_stack([lo, hi, np.sqrt(area)[:, None]]) / eps).astype(np.int64)
+    out = np.zeros(q, bool)
+    groups: dict = {}
+    for g in np.flatnonzero(used):
+        groups.setdefault(key[g].tobytes(), []).append(g)
+    for members in groups.values():
+        for i, a in enumerate(members):
+            for b in members[i + 1:]:
+                if normal[a] @ normal[b] < 0.0:
+                    out[a] = out[b] = True
+    return out
 
 
 def _average(values: np.ndarray, weights: np.ndarray) -> np.ndarray:

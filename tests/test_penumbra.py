@@ -98,6 +98,9 @@ FAR_WALL = [[3.0, 0, 0], [3.0, 1, 0], [3.0, 1, 2], [3.0, 0, 2]]
     # nothing behind it; with a wall behind it it hides part of the wall, unless it only grazes
     ([[[1.0, 0, 0], [2.0, 0, 0.3], [2.0, 1, 0.3], [1.0, 1, 0]], FAR_WALL], True),
     ([[[1.0, 0, 0], [2.0, 0, 0.01], [2.0, 1, 0.01], [1.0, 1, 0]], FAR_WALL], False),  # 0.6°
+    # a card 0.005 above the floor, parallel to it, over half of it: it hides the wall from
+    # that half at any elevation (the corner-only elevation test missed it)
+    ([[[0.5, -1, 0.005], [3.0, -1, 0.005], [3.0, 2, 0.005], [0.5, 2, 0.005]], FAR_WALL], True),
 ])
 def test_an_occluder_must_rise_in_front_of_the_shooter_with_scene_behind_it(quads, blocks):
     h, ctx = _context(_floor_and(*(np.array(q, float) for q in quads)), patch=1.0,
@@ -202,3 +205,27 @@ def test_points_under_a_block_standing_on_the_shooter_are_dropped():
     assert kept == {tuple(np.round(q, 12)) for q in every[~under]}
     assert weights.sum() == pytest.approx(1.0, abs=1e-15)
     np.testing.assert_allclose(weights, weights[0])   # the two triangles have equal areas
+
+
+@pytest.mark.parametrize("up_first", [True, False])
+def test_points_under_an_open_two_sided_shelf_are_kept_whatever_the_face_order(up_first):
+    # a two-sided shelf (two coincident faces) 0.1 above half of the floor, open at the sides:
+    # light reaches the floor under it (from its underside and from the sides), so no point is
+    # dropped, whichever of the two faces comes first in the file (which one a ray meets first
+    # is round-off)
+    from daskrad.scene.validate import scene_from_arrays
+
+    v = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+         [0.3, -0.5, 0.1], [0.8, -0.5, 0.1], [0.8, 1.5, 0.1], [0.3, 1.5, 0.1],
+         [-1, -1, 2], [-1, 2, 2], [2, 2, 2], [2, -1, 2]]                  # ceiling, facing -z
+    up, down = [4, 5, 6, 7], [7, 6, 5, 4]
+    polys = [[0, 1, 2, 3], *([up, down] if up_first else [down, up]), [8, 9, 10, 11]]
+    scene = scene_from_arrays(np.array(v, float), np.array(polys), np.zeros(4, int),
+                              [[0.5] * 3], [[1.0] * 3])
+    h, ctx = _context(scene, patch=1.0, element=0.5)
+    assert ctx.polygon_two_sided.tolist() == [False, True, True, False]
+    floor = int(np.flatnonzero(h.patch_polygon == 0)[0])
+    points, weights = shoot.shooter_points(ctx, floor)
+    assert len(points) == 2 * len(shoot.SHOOTER_POINTS)
+    under = (points[:, 0] > 0.3) & (points[:, 0] < 0.8)
+    assert under.any()

@@ -119,7 +119,8 @@ def _perpendicular_squares(n: int):
         patch_polygon=np.zeros(1, np.int32), patch_area=np.ones(1),
         patch_centroid=np.array([[0.5, 0.0, 0.5]]), patch_normal=np.array([[0.0, 1.0, 0.0]]),
         patch_radius=np.array([math.sqrt(0.5)]), elem_radius=np.full(n * n, math.sqrt(0.5) / n),
-        polygon_sides=np.full(2, -1, np.int8), eps=1e-9, method="analytic", resolution=32,
+        polygon_sides=np.full(2, -1, np.int8),
+        polygon_two_sided=np.zeros(2, bool), eps=1e-9, method="analytic", resolution=32,
         options={})
 
 

@@ -44,31 +44,27 @@ def plane_sides(vertices, point, normal, eps):
 
 
 @jit
-def _distance_in_plane(px, py, pz, corners, normal):
-    """Distance from a point in a convex polygon's plane to the polygon (0 inside);
-    ``corners : (k, 3)`` in order, ``normal`` the polygon's."""
-    k = corners.shape[0]
-    inside = True
-    best = np.inf
-    for a in range(k):
-        b = (a + 1) % k
-        ex = corners[b, 0] - corners[a, 0]
-        ey = corners[b, 1] - corners[a, 1]
-        ez = corners[b, 2] - corners[a, 2]
-        qx = px - corners[a, 0]
-        qy = py - corners[a, 1]
-        qz = pz - corners[a, 2]
-        # left of every edge (seen along the normal) is inside
-        if (ey * qz - ez * qy) * normal[0] + (ez * qx - ex * qz) * normal[1] \
-                + (ex * qy - ey * qx) * normal[2] < 0.0:
-            inside = False
-        t = (qx * ex + qy * ey + qz * ez) / max(ex * ex + ey * ey + ez * ez, 1e-300)
-        t = min(max(t, 0.0), 1.0)
-        dx = qx - t * ex
-        dy = qy - t * ey
-        dz = qz - t * ez
-        best = min(best, np.sqrt(dx * dx + dy * dy + dz * dz))
-    return 0.0 if inside else best
+def _folded_away(corners, normal, point, enormal, eps, grazing):
+    """Whether the element plane (``point``, ``enormal``) meets the shooter's plane at a
+    dihedral angle ``α`` with ``sin²α <= grazing`` and passes at or below the shooter's plane
+    everywhere over the shooter (``corners``, convex): then the element rises only beyond the
+    line where the planes meet, at an elevation of at most ``α`` from every point of the
+    shooter (a slightly folded neighbour, as the measured Cornell box's red wall). A parallel
+    element above the shooter, or one overhanging it, is not folded away.
+    """
+    cx = normal[1] * enormal[2] - normal[2] * enormal[1]
+    cy = normal[2] * enormal[0] - normal[0] * enormal[2]
+    cz = normal[0] * enormal[1] - normal[1] * enormal[0]
+    if cx * cx + cy * cy + cz * cz > grazing:
+        return False
+    nn = normal[0] * enormal[0] + normal[1] * enormal[1] + normal[2] * enormal[2]
+    for k in range(corners.shape[0]):
+        # height of the element's plane above corner k, along the shooter's normal
+        t = ((point[0] - corners[k, 0]) * enormal[0] + (point[1] - corners[k, 1]) * enormal[1]
+             + (point[2] - corners[k, 2]) * enormal[2]) / nn
+        if t > eps:
+            return False
+    return True
 
 
 @jit
@@ -83,10 +79,9 @@ def nearest_blocker(corners, centroid, normal, polygon, vertices, elem_verts,
     centroid-to-corner distance; ``sides : (Q,) int8`` per polygon, ``UNKNOWN`` or
     :func:`plane_sides`, filled in here as polygons are met (a pure function of the geometry:
     racing threads write the same value);
-    ``eps`` a length (the scene's coplanarity tolerance). An element whose corners rise above
-    the shooter's plane by an elevation ``θ`` with ``sin²θ < grazing`` from every point of the
-    shooter blocks only directions that carry less than ``grazing`` of a cosine-weighted
-    hemisphere (a slightly folded wall is not an occluder).
+    ``eps`` a length (the scene's coplanarity tolerance). An element folded away from the
+    shooter by less than ``asin(√grazing)`` (:func:`_folded_away`) hides only directions that
+    carry less than ``grazing`` of a cosine-weighted hemisphere and is not counted.
     """
     best = np.inf
     for j in range(elem_centroid.shape[0]):
@@ -98,26 +93,19 @@ def nearest_blocker(corners, centroid, normal, polygon, vertices, elem_verts,
         dist = np.sqrt(dx * dx + dy * dy + dz * dz) - elem_radius[j]
         if dist >= best:
             continue
-        # in front of the shooter, and not just grazing its plane
-        rises = False
+        # in front of the shooter: a corner above its plane
+        above = False
         for k in range(4):
             v = elem_verts[j, k]
             if v < 0:
                 break
-            hx = vertices[v, 0] - centroid[0]
-            hy = vertices[v, 1] - centroid[1]
-            hz = vertices[v, 2] - centroid[2]
-            height = hx * normal[0] + hy * normal[1] + hz * normal[2]
-            if height <= eps:
-                continue
-            # the corner's foot on the shooter's plane, and its distance to the shooter
-            across = _distance_in_plane(vertices[v, 0] - height * normal[0],
-                                        vertices[v, 1] - height * normal[1],
-                                        vertices[v, 2] - height * normal[2], corners, normal)
-            if height * height > grazing * (height * height + across * across):
-                rises = True
+            if ((vertices[v, 0] - centroid[0]) * normal[0] + (vertices[v, 1] - centroid[1])
+                    * normal[1] + (vertices[v, 2] - centroid[2]) * normal[2]) > eps:
+                above = True
                 break
-        if not rises:
+        if not above:
+            continue
+        if _folded_away(corners, normal, elem_centroid[j], elem_normal[j], eps, grazing):
             continue
         lo = np.inf
         hi = -np.inf
