@@ -490,3 +490,6 @@ def test_lex_less_lets_round_off_tie_and_the_next_coordinate_decide():
     assert not lex_less(np.nextafter(x, 0.0), 2.0, 0.0, x, 1.0, 0.0)
     assert lex_less(x - 1e-6, 2.0, 0.0, x, 1.0, 0.0)
     assert not lex_less(x, 1.0, 0.0, x, 1.0, 0.0)       # a point is not before itself
+    # two distinct points within round-off in every coordinate: still exactly one order
+    a, b = (1.0, 2.0, 0.5), (1.0 + 2e-12, 2.0 - 2e-12, 0.5)
+    assert lex_less(*a, *b) != lex_less(*b, *a)

@@ -210,3 +210,32 @@ def test_ctrl_c_during_a_store_write_waits_for_it_to_finish(tmp_path, monkeypatc
     assert (attrs["checkpoint"], attrs["iteration"]) == (0, 8)
     assert store.load_checkpoint(h).iteration == 8
     assert not list((tmp_path / "s.zarr").rglob("*.partial"))
+
+
+def test_ctrl_c_held_by_a_store_call_goes_to_the_handler_that_was_there(tmp_path,
+                                                                        monkeypatch):
+    # a caller's own SIGINT handler gets the held signal once the store call is done (not a
+    # KeyboardInterrupt in its place); with SIGINT ignored nothing is raised at all
+    import os
+
+    got, during = [], []
+    replace = Path.replace
+
+    def interrupting(self, target):
+        if not during:
+            os.kill(os.getpid(), signal.SIGINT)
+            during.append(list(got))            # what the handler had seen by then
+        return replace(self, target)
+
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: got.append(signum))
+    try:
+        monkeypatch.setattr(Path, "replace", interrupting)
+        Store(tmp_path / "a.zarr", Settings()).open()
+        assert during == [[]]                   # held while the store call ran ...
+        assert got == [signal.SIGINT]           # ... then delivered to the caller's handler
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        during.clear()
+        Store(tmp_path / "b.zarr", Settings()).open()   # ignored: no KeyboardInterrupt
+        assert during == [[signal.SIGINT]] and got == [signal.SIGINT]
+    finally:
+        signal.signal(signal.SIGINT, previous)

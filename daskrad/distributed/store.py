@@ -91,7 +91,7 @@ def _uninterrupted():
     """
     previous = signal.getsignal(signal.SIGINT)
     if (threading.current_thread() is not threading.main_thread() or previous is _hold
-            or previous is None):
+            or previous is None or previous is signal.SIG_IGN):
         yield
         return
     _hold.caught = False
@@ -100,8 +100,9 @@ def _uninterrupted():
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
-    if _hold.caught:
-        raise KeyboardInterrupt
+        if _hold.caught:              # deliver it now to whatever handled it before
+            _hold.caught = False
+            signal.raise_signal(signal.SIGINT)
 
 
 def _hold(signum, frame) -> None:

@@ -55,6 +55,14 @@ def lex_less(ax, ay, az, bx, by, bz):
         return ax < bx
     if abs(ay - by) > tie:
         return ay < by
+    if abs(az - bz) > tie:
+        return az < bz
+    # two points within round-off of each other (an edge ~1e-12 of its coordinates long):
+    # plain lexicographic order, so that exactly one of a < b, b < a holds for distinct points
+    if ax != bx:
+        return ax < bx
+    if ay != by:
+        return ay < by
     return az < bz
 
 
