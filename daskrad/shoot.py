@@ -57,7 +57,6 @@ CLOSE = 2.0
 STRATA = 2
 
 
-
 def _cyclic(a: float, b: float) -> np.ndarray:
     """``(3, 3) float64`` barycentric points: the cyclic permutations of ``(a, b, 1-a-b)``,
     whose mean is the centroid exactly, whatever ``a`` and ``b``."""
@@ -146,14 +145,9 @@ def shooter_points(ctx: ShootContext, p: int) -> tuple[np.ndarray, np.ndarray]:
     :data:`SHOOTER_POINTS` in each of the patch's triangles, weighted by the triangle's area
     (Σ = 1, mean = centroid), less the points inside a closed object (:func:`_enclosed`).
     """
-    corners = _corners(ctx.patch_verts[p])
-    d = nearest_blocker(ctx.vertices[corners], ctx.patch_centroid[p], ctx.patch_normal[p],
-                        ctx.patch_polygon[p], ctx.vertices,
-                        ctx.elem_verts, ctx.elem_centroid, ctx.elem_normal,
-                        ctx.elem_radius, ctx.elem_polygon, ctx.polygon_sides, ctx.eps,
-                        GRAZING)
-    if not d < PENUMBRA * ctx.patch_radius[p]:
+    if not occluder_distance(ctx, p) < PENUMBRA * ctx.patch_radius[p]:
         return ctx.patch_centroid[p][None], np.ones(1)
+    corners = _corners(ctx.patch_verts[p])
     bary = SHOOTER_POINTS
     halves = ctx.vertices[corners[[[0, 1, 2], [0, 2, 3]][:len(corners) - 2]]]
     area = 0.5 * np.linalg.norm(np.cross(halves[:, 1] - halves[:, 0],
@@ -164,6 +158,16 @@ def shooter_points(ctx: ShootContext, p: int) -> tuple[np.ndarray, np.ndarray]:
     if open_.any() and not open_.all():
         points, weights = points[open_], weights[open_] / weights[open_].sum()
     return points, weights
+
+
+def occluder_distance(ctx: ShootContext, p: int) -> float:
+    """Distance from patch ``p``'s centroid to its nearest possible occluder, less that
+    element's radius; ``inf`` when nothing can occlude it
+    (:func:`daskrad.kernels.blockers.nearest_blocker`)."""
+    return nearest_blocker(ctx.vertices[_corners(ctx.patch_verts[p])], ctx.patch_centroid[p],
+                           ctx.patch_normal[p], ctx.patch_polygon[p], ctx.vertices,
+                           ctx.elem_verts, ctx.elem_centroid, ctx.elem_normal, ctx.elem_radius,
+                           ctx.elem_polygon, ctx.polygon_sides, ctx.eps, GRAZING)
 
 
 def _probes() -> np.ndarray:

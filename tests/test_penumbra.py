@@ -25,14 +25,7 @@ def _context(scene, patch=0.25, element=0.125, method="hemisphere", resolution=6
 
 def _blocker_distance(ctx, p):
     """Distance to the nearest occluder of patch ``p`` in its own radii."""
-    from daskrad.kernels.blockers import nearest_blocker
-
-    c = shoot._corners(ctx.patch_verts[p])
-    return nearest_blocker(ctx.vertices[c], ctx.patch_centroid[p], ctx.patch_normal[p],
-                           ctx.patch_polygon[p], ctx.vertices,
-                           ctx.elem_verts, ctx.elem_centroid,
-                           ctx.elem_normal, ctx.elem_radius, ctx.elem_polygon,
-                           ctx.polygon_sides, ctx.eps, shoot.GRAZING) / ctx.patch_radius[p]
+    return shoot.occluder_distance(ctx, p) / ctx.patch_radius[p]
 
 
 def test_a_convex_room_has_no_occluders_and_keeps_the_centroid_row_bit_for_bit():

@@ -280,28 +280,22 @@ def hemicube_rows(points, normals, vertices, elem_verts, resolution=256, **optio
 _GRID_CACHE: tuple | None = None
 
 
-def _element_grid(vertices, elem_verts):
-    """Voxel grid over the elements' triangles (quads split along 0–2), cached for the last
+def element_grid(vertices, elem_verts):
+    """``(grid, tri_elem)``: the voxel grid over the elements' triangles (quads split along
+    0–2) and ``tri_elem : (T,) int64``, the element of each triangle; cached for the last
     geometry seen (compared by content, so an edited array never reuses a stale grid)."""
     global _GRID_CACHE
     cached = _GRID_CACHE
     if (cached is not None and np.array_equal(cached[0], vertices)
             and np.array_equal(cached[1], elem_verts)):
         return cached[2]
-    quad = elem_verts[:, 3] >= 0
+    quad = np.flatnonzero(elem_verts[:, 3] >= 0)
     first = vertices[elem_verts[:, :3]]
     second = vertices[elem_verts[quad][:, [0, 2, 3]]]
     grid = build_grid(np.concatenate([first, second]), rel_eps=tolerances.RAY_EPS)
-    _GRID_CACHE = (vertices.copy(), elem_verts.copy(), grid)
-    return grid
-
-
-def element_grid(vertices, elem_verts):
-    """``(grid, tri_elem)``: the voxel grid over the elements' triangles (cached, see
-    :func:`_element_grid`) and ``tri_elem : (T,) int64``, the element of each triangle."""
-    quad = np.flatnonzero(elem_verts[:, 3] >= 0)
-    return (_element_grid(vertices, elem_verts),
-            np.concatenate([np.arange(len(elem_verts)), quad]))
+    built = (grid, np.concatenate([np.arange(len(elem_verts)), quad]))
+    _GRID_CACHE = (vertices.copy(), elem_verts.copy(), built)
+    return built
 
 
 def raycast_rows(points, normals, vertices, elem_verts, resolution=None, samples=2,
@@ -322,7 +316,7 @@ def raycast_rows(points, normals, vertices, elem_verts, resolution=None, samples
     lam = lambert_shots(points, normals, vertices, elem_verts)
     if not len(elem_verts):
         return lam
-    grid = _element_grid(vertices, elem_verts)
+    grid, _ = element_grid(vertices, elem_verts)
     offset = tolerances.RAY_OFFSET * max(scene_diagonal(vertices), 1e-300)
     vis = raycast_visibility(points, normals, vertices, elem_verts, lam > 0.0, grid,
                              int(samples), offset)
