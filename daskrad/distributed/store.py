@@ -79,15 +79,15 @@ def _jsonable(value):
 
 @contextlib.contextmanager
 def _uninterrupted():
-    """Hold Ctrl-C (SIGINT) until the block ends, then raise it.
+    """Hold Ctrl-C (SIGINT) until the block ends, then deliver it.
 
     Zarr writes from its own event-loop thread; a KeyboardInterrupt raised in the waiting main
     thread abandons the write task mid-way, and the interpreter then prints "Task was destroyed
     but it is pending!" and a traceback on exit (CI; 6 of 20 Ctrl-C'd runs under load, 0 of 20
-    since). A store call is short (milliseconds), so it finishes first and the interrupt
-    follows. Off the main thread (signals
-    reach the main thread only), inside an outer block, or with a handler not set from Python,
-    nothing changes.
+    since). A store call is short (milliseconds), so it finishes first and then the signal is
+    raised again for the handler that was there before (Python's KeyboardInterrupt, or the
+    caller's own). Off the main thread (signals reach the main thread only), inside an outer
+    block, with SIGINT ignored or with a handler not set from Python, nothing changes.
     """
     previous = signal.getsignal(signal.SIGINT)
     if (threading.current_thread() is not threading.main_thread() or previous is _hold
@@ -207,7 +207,7 @@ class Store:
         pa = g.require_group("patches")
         _put(pa, "polygon", h.patch_polygon, np.int32)
         g.update_attributes({"generation": int(h.generation), "n_elements": h.n_elements,
-                        "n_patches": h.n_patches})
+                             "n_patches": h.n_patches})
 
     # --- checkpoints ----------------------------------------------------------------------
 
