@@ -146,21 +146,27 @@ def test_a_torn_checkpoint_leaves_the_previous_one(tmp_path):
     assert back.initial_rms == last.initial_rms and back.seconds == last.seconds
 
 
+def _store_at_iteration_8(path: Path):
+    """``(h, store, sol)``: a new store for a small emitting box, and a solution claiming 8
+    shots (one history entry) to checkpoint into it."""
+    from daskrad import solve
+    from daskrad.mesh import build_hierarchy
+    from daskrad.scene import box_scene
+
+    h = build_hierarchy(box_scene(emission_per_face=1.0), 0.5, 0.5)
+    store = Store(path, Settings()).open()
+    sol = store.begin(h, np.full((h.n_elements, 3), 0.5),
+                      solve.initial_solution(h, np.ones((h.n_elements, 3))))
+    sol.iteration, sol.history = 8, [(8, 0.5, 1.0)]
+    return h, store, sol
+
+
 def test_a_checkpoint_names_its_slot_in_one_write_of_the_root_metadata(tmp_path, monkeypatch):
     # the root's zarr.json is replaced exactly once per checkpoint, with the slot's name, the
     # iteration and the history together: zarr 3's attrs.update writes key by key, and a client
     # killed between two writes left "checkpoint" beside the previous iteration (seen 3 times
     # in 42 killed runs under load; 0 in 30 since)
-    from daskrad import solve
-    from daskrad.mesh import build_hierarchy
-    from daskrad.scene import box_scene
-
-    scene = box_scene(emission_per_face=1.0)
-    h = build_hierarchy(scene, 0.5, 0.5)
-    store = Store(tmp_path / "s.zarr", Settings()).open()
-    sol = store.begin(h, np.full((h.n_elements, 3), 0.5), solve.initial_solution(
-        h, np.ones((h.n_elements, 3))))
-    sol.iteration, sol.history = 8, [(8, 0.5, 1.0)]
+    h, store, sol = _store_at_iteration_8(tmp_path / "s.zarr")
     root = (tmp_path / "s.zarr" / "zarr.json").resolve()
     seen = []
     replace = Path.replace
@@ -183,15 +189,7 @@ def test_ctrl_c_during_a_store_write_waits_for_it_to_finish(tmp_path, monkeypatc
     # half-written and no zarr task is abandoned
     import os
 
-    from daskrad import solve
-    from daskrad.mesh import build_hierarchy
-    from daskrad.scene import box_scene
-
-    h = build_hierarchy(box_scene(emission_per_face=1.0), 0.5, 0.5)
-    store = Store(tmp_path / "s.zarr", Settings()).open()
-    sol = store.begin(h, np.full((h.n_elements, 3), 0.5),
-                      solve.initial_solution(h, np.ones((h.n_elements, 3))))
-    sol.iteration, sol.history = 8, [(8, 0.5, 1.0)]
+    h, store, sol = _store_at_iteration_8(tmp_path / "s.zarr")
     replace = Path.replace
     sent = []
 
