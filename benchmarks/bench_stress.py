@@ -5,8 +5,8 @@ table — case, quantity, outcome, measured error, limit — and writes
 ``benchmarks/results/stress.json``. The cases are those of tests/test_stress.py
 (tests/stress_cases.py); ``--quick`` skips the 10,000-shot, 50,000-element drift run.
 
-Outcomes: ``pass`` (within the limit), ``FAIL`` (a known failure, xfail in the tests, with the
-reason), ``refused`` (the input was refused with a clear message), ``error`` (an exception: a
+Outcomes: ``pass`` (within the limit), ``FAIL`` (over it: the matching test fails too),
+``refused`` (the input was refused with a clear message), ``error`` (an exception: a
 bug); ``kept``/``rejected`` for a figure measured to make a choice (float32 accumulation).
 """
 
