@@ -41,10 +41,11 @@ from pathlib import Path
 
 import numpy as np
 
-from daskrad import shoot, solve
+from daskrad import solve
 from daskrad.distributed import worker
 from daskrad.distributed.dask_executor import start_local
 from daskrad.distributed.store import Store
+from daskrad.formfactor import shooting
 from daskrad.mesh import build_hierarchy
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
@@ -75,7 +76,7 @@ def start(workers: int, h, tmp: Path):
     settings = Settings(workers=workers, batch=BATCH, dashboard="127.0.0.1:0")
     store = Store(tmp / f"scaling-{workers}.zarr", settings).open()
     executor = start_local(settings, store)
-    ctx = shoot.make_context(h, settings.method, settings.resolution,
+    ctx = shooting.make_context(h, settings.method, settings.resolution,
                              edge_angle=settings.edge_angle)
     executor.set_geometry(ctx, h.generation)
     generation, token = executor._shoot

@@ -1,8 +1,9 @@
 """Seconds per shot of the solver (issue 3): against element count and resolution, and the
 furnace error against run time.
 
-A *shot* here is the whole form-factor task of one patch (:func:`daskrad.shoot.shoot_row`:
-hemisphere pass, near-field correction) plus the client's update; medians of repeats.
+A *shot* here is the whole form-factor task of one patch
+(:func:`daskrad.formfactor.shooting.shoot_row`: hemisphere pass, near-field correction) plus the
+client's update; medians of repeats.
 """
 
 from __future__ import annotations
@@ -14,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from daskrad import shoot, solve
+from daskrad import solve
+from daskrad.formfactor import shooting
 from daskrad.mesh import build_hierarchy
 from daskrad.run import solve_scene
 from daskrad.scene import box_scene
@@ -33,15 +35,15 @@ def _box(elements: int):
 
 def time_shots(h, resolution: int, shots: int = 12, repeats: int = 3) -> float:
     """Median seconds per shot: form factors of ``shots`` patches and their updates."""
-    ctx = shoot.make_context(h, "hemisphere", resolution)
+    ctx = shooting.make_context(h, "hemisphere", resolution)
     refl = np.full((h.n_elements, 3), 0.5)
     ids = np.linspace(0, h.n_patches - 1, shots).astype(int)
-    shoot.shoot_rows(ctx, ids[:1])  # compile / warm the numba cache
+    shooting.shoot_rows(ctx, ids[:1])  # compile / warm the numba cache
     times = []
     for _ in range(repeats):
         sol = solve.initial_solution(h, np.ones((h.n_elements, 3)))
         t = time.perf_counter()
-        for p, (eids, f) in zip(ids, shoot.shoot_rows(ctx, ids), strict=True):
+        for p, (eids, f) in zip(ids, shooting.shoot_rows(ctx, ids), strict=True):
             solve.apply_shot(h, refl, sol, int(p), eids, f)
         times.append((time.perf_counter() - t) / shots)
     return float(np.median(times))

@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.bench_reference import SCENE, SIZE, errors, reference
-from daskrad import render, solve
+from daskrad import render
 from daskrad.io import read_exr, write_exr, write_png
-from daskrad.run import _camera, _render_context, solve_scene
+from daskrad.run import solve_scene
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
 
@@ -50,17 +50,14 @@ CONFIGS = [
 
 def _solve(scene, settings):
     t = time.perf_counter()
-    extra: dict = {}
-    h, refl, sol, (_, tri_verts, tri_elem, grid) = solve_scene(scene, settings, extra=extra)
-    amb = solve.ambient(h, refl, sol.unshot)
-    return (h, refl, sol, amb, extra, (tri_verts, tri_elem, grid)), time.perf_counter() - t
+    solved = solve_scene(scene, settings)
+    return solved, time.perf_counter() - t
 
 
 def _render(scene, settings, solved):
-    h, refl, sol, amb, extra, parts = solved
     t = time.perf_counter()
-    ctx = _render_context(scene, settings, h, refl, sol, amb, extra, parts,
-                          _camera(scene, settings))
+    ctx = render.context(scene, solved.light, solved.solution, settings,
+                         render.camera(scene, settings))
     image = np.zeros((SIZE, SIZE, 3))
     count = 0
     for rows, cols in render.tiles(SIZE, SIZE):

@@ -116,12 +116,12 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        from daskrad import run as pipeline
+        from daskrad import commands as subcommands
 
         if args.command == "info":
-            print(pipeline.info_text(args))
+            print(subcommands.info_text(args))
         elif args.command == "run":
-            pipeline.run_cli(args)
+            subcommands.run_command(args)
     except DaskradError as err:
         sys.stderr.write(f"daskrad: error: {err.line()}\n")
         return 2

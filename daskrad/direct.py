@@ -17,6 +17,7 @@ over the same batches.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -26,15 +27,19 @@ from daskrad.errors import OptionError
 from daskrad.kernels.arealight import area_irradiance
 from daskrad.kernels.direct import irradiance_points
 from daskrad.kernels.grid import Grid
+from daskrad.mesh import default_sizes
+from daskrad.mesh.refine import MIN_SIZE_DIVISOR, TVertices, refine
 from daskrad.mesh.types import Hierarchy
+from daskrad.preprocess import Mesh
+from daskrad.scene.corners import corner_count, repeat_third
 from daskrad.scene.types import Scene
 from daskrad.settings import Settings
 
 #: Shadow rays per area light (one emitting patch) are ``AREA_SAMPLES²``, stratified and
-#: jittered. 4 × 4 keeps the visible fraction's error near 1/16 in a penumbra and exact where
-#: the light is wholly visible or hidden, the only places a vertex value must be exact; the
-#: per-pixel pass uses the same count per pixel sample.
-AREA_SAMPLES = 4
+#: jittered (the run's ``Settings.area_samples``). 4 × 4 keeps the visible fraction's error near
+#: 1/16 in a penumbra and exact where the light is wholly visible or hidden, the only places a
+#: vertex value must be exact; the per-pixel pass uses the same count per pixel sample.
+AREA_SAMPLES = Settings.area_samples
 
 #: Side ``R`` of the ``R × R`` raster over an area light's window on the hemisphere base
 #: (the ``"hemisphere"`` area method, :mod:`daskrad.kernels.arealight`); set from
@@ -191,11 +196,9 @@ def emitters(scene: Scene, h: Hierarchy) -> dict:
     Ke = scene.materials.emission[h.polygon_material[h.patch_polygon]]
     ids = np.flatnonzero((Ke > 0).any(axis=1))
     pv = h.patch_verts[ids]
-    count = np.where(pv[:, 3] >= 0, 4, 3).astype(np.int64)
-    pv = np.where(pv < 0, pv[:, 2:3], pv)
     return dict(
-        emitter_corners=np.ascontiguousarray(h.vertices[pv]),
-        emitter_count=count,
+        emitter_corners=np.ascontiguousarray(h.vertices[repeat_third(pv)]),
+        emitter_count=corner_count(pv),
         emitter_normal=np.ascontiguousarray(h.patch_normal[ids]),
         emitter_radiance=np.ascontiguousarray(Ke[ids], dtype=np.float64),
         emitter_area=np.ascontiguousarray(h.patch_area[ids]),
@@ -377,3 +380,82 @@ def total_power(scene: Scene) -> np.ndarray:
     p = 4.0 * math.pi * np.asarray(scene.point_lights.intensity).reshape(-1, 3).sum(axis=0)
     Ke = scene.materials.emission[scene.polygon_material]
     return p + math.pi * (Ke * polygon_areas(scene)[:, None]).sum(axis=0)
+
+
+@dataclass(frozen=True)
+class DirectLight:
+    """Step 2's result: direct light at every vertex of the refined mesh.
+
+    Attributes
+    ----------
+    mesh : Mesh
+        The mesh after adaptive subdivision (a later generation than step 1's when it split).
+    irradiance : (V, 3) float64 or None
+        Direct irradiance ``H`` (W/m²) at every vertex from the lights gathered here; ``None``
+        when the scene has none (no point or directional light, and area lights are shot).
+    reflected : (E, 3) float64
+        ``ρ · H`` averaged over each element's corners: the first bounce of direct light.
+    tvertices : TVertices
+        Vertices refinement left in the middle of a neighbour's edge (interpolated from it).
+    context : DirectContext or None
+        The lights and shadow-ray settings the vertices saw; the per-pixel pass evaluates the
+        same lights.
+    levels : int
+        Subdivision levels applied.
+    emitters_shot : bool
+        Whether area lights are left to the solve as patches with unshot energy (one-pass)
+        instead of gathered here (two-pass, ``Settings.two_pass``).
+    seconds : float
+    """
+
+    mesh: Mesh
+    irradiance: np.ndarray | None
+    reflected: np.ndarray
+    tvertices: TVertices
+    context: DirectContext | None
+    levels: int
+    emitters_shot: bool
+    seconds: float = 0.0
+
+
+def light(scene: Scene, mesh: Mesh, settings: Settings, executor=None) -> DirectLight:
+    """Step 2: direct light at vertices, then adaptive subdivision (issue 5).
+
+    With ``settings.two_pass`` area lights are gathered at the vertices and never shot;
+    otherwise they are shot like any patch and only point and directional lights are gathered.
+    Elements whose corners' reflected light ``ρH`` spreads by more than ``settings.subdivide``
+    are split (down to ``min_element_size``) and the new vertices computed, level by level.
+    ``executor`` runs the vertex batches (Dask futures ``direct-…``), else this process.
+    """
+    t = time.perf_counter()
+    h = mesh.hierarchy
+    gathered = bool(len(scene.point_lights) or len(scene.directional_lights)
+                    or (settings.two_pass and scene.emitting.any()))
+    if not gathered:
+        return DirectLight(mesh=mesh, irradiance=None, reflected=np.zeros_like(mesh.emission),
+                           tvertices=TVertices.empty(), context=None, levels=0,
+                           emitters_shot=True)
+    ctx = make_context(scene, h, mesh.grid, settings.area_samples, method=settings.area_method)
+    if not settings.two_pass:  # emitters are shot: gather point and directional lights only
+        ctx = replace(ctx, emitter_corners=np.zeros((0, 4, 3)),
+                      emitter_count=np.zeros(0, np.int64), emitter_normal=np.zeros((0, 3)),
+                      emitter_radiance=np.zeros((0, 3)), emitter_area=np.zeros(0))
+    H = compute(ctx, 0, len(h.vertices), executor)
+    diffuse = scene.materials.diffuse
+
+    def evaluate(h2: Hierarchy, start: int, stop: int) -> np.ndarray:
+        """H at the new vertices ``start:stop`` of a refined hierarchy."""
+        return compute(with_hierarchy(ctx, h2), start, stop, executor)
+
+    element_size = settings.element_size or default_sizes(scene)[1]
+    h, H, tv, levels = refine(
+        h, H, evaluate, scale=lambda h2: vertex_reflectance(h2, diffuse[h2.elem_material]),
+        threshold=settings.subdivide,
+        min_size=settings.min_element_size or element_size / MIN_SIZE_DIVISOR)
+    if levels:
+        ctx = with_hierarchy(ctx, h)
+    mesh = mesh.remeshed(scene, h)
+    return DirectLight(mesh=mesh, irradiance=H,
+                       reflected=mesh.reflectance * element_mean(h, H), tvertices=tv,
+                       context=ctx, levels=levels, emitters_shot=not settings.two_pass,
+                       seconds=time.perf_counter() - t)

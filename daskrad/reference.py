@@ -14,15 +14,13 @@ import numpy as np
 from daskrad import render, tolerances
 from daskrad.kernels.grid import build_grid
 from daskrad.kernels.pathtrace import trace_image
+from daskrad.scene.corners import split_quads
 from daskrad.scene.types import Camera, Scene
 
 
 def _triangles(scene: Scene):
     """The scene's polygons as triangles: ``(T, 3, 3)`` corners and ``(T,)`` polygon ids."""
-    p = scene.polygons
-    quad = p[:, 3] >= 0
-    tris = np.concatenate([p[:, :3], p[quad][:, [0, 2, 3]]])
-    owner = np.concatenate([np.arange(len(p)), np.flatnonzero(quad)])
+    tris, owner = split_quads(scene.polygons)
     return scene.vertices[tris], owner
 
 

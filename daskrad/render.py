@@ -16,15 +16,20 @@ so a pixel's value does not depend on which tile or worker computed it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from daskrad import tolerances
-from daskrad.direct import Lights
+from daskrad import direct, tolerances
+from daskrad.direct import DirectLight, Lights
 from daskrad.kernels.grid import Grid, closest_hit
 from daskrad.kernels.shade import direct_at_hits
-from daskrad.scene.types import Camera
+from daskrad.mesh import vertex_average
+from daskrad.mesh.refine import resolve_tvertices
+from daskrad.scene.types import Camera, Scene
+from daskrad.settings import Settings
+from daskrad.solve import Solution, ambient
 
 #: Tile side in pixels for the per-pixel pass (a tile is one task).
 TILE = 64
@@ -330,8 +335,6 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
     scene does not need are left ``None``: no qualifying element, no ``Ks`` and no mirror give
     back the plain context, so the tile tasks do exactly the work of a Gouraud image.
     """
-    from dataclasses import replace
-
     if lights is not None and lights.empty:
         lights = None
     pp = (perpixel_elements(elem_verts, vertex_direct, ctx.vertex_radiance, rdiff)
@@ -357,3 +360,95 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
         mirror_depth=int(mirror_depth) if has_mirror else 0,
         offset=tolerances.RAY_OFFSET * float(diagonal),
     )
+
+
+def camera(scene: Scene, settings: Settings) -> Camera:
+    """The scene's camera (or :func:`default_camera`) at the settings' image size."""
+    cam = scene.camera or default_camera(scene.bounds)
+    return replace(cam, width=settings.width or cam.width, height=settings.height or cam.height)
+
+
+def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
+            cam: Camera) -> RenderContext:
+    """The tile renderer's context for a solution.
+
+    Vertex radiance is split into the part interpolated across elements (indirect light and
+    the ambient term of an unconverged solution) and the direct part ``E + ρH``, exact at
+    every vertex; T-vertices take both from their edge, so no seam shows. The per-pixel pass
+    (eq. 9), Phong highlights and mirrors are switched on where the scene needs them
+    (:func:`perpixel_context`).
+    """
+    mesh = light.mesh
+    h, reflectance = mesh.hierarchy, mesh.reflectance
+    amb = ambient(h, reflectance, sol.unshot)
+    H = light.irradiance
+    if H is None:
+        indirect = vertex_average(h, sol.radiosity + reflectance * amb)
+        direct_v = np.zeros_like(indirect)
+    else:
+        # the direct part is known exactly at every vertex: E + ρ H (one polygon per vertex);
+        # with emitters shot, their direct light is part of `indirect`
+        direct_v = (direct.vertex_reflectance(h, mesh.emission)
+                    + direct.vertex_reflectance(h, reflectance) * H)
+        indirect = vertex_average(h, sol.radiosity - sol.direct + reflectance * amb)
+    indirect = resolve_tvertices(indirect, light.tvertices) / math.pi
+    direct_v = resolve_tvertices(direct_v, light.tvertices) / math.pi
+    ctx = RenderContext(grid=mesh.grid, tri_verts=mesh.tri_verts, tri_element=mesh.tri_element,
+                        elem_normal=h.elem_normal, vertex_radiance=indirect + direct_v,
+                        camera=cam, spp=settings.spp)
+    mats, mat = scene.materials, h.elem_material
+    return perpixel_context(
+        ctx, h.elem_verts, vertex_indirect=indirect, vertex_direct=direct_v,
+        elem_reflectance=reflectance, elem_emission=mats.emission[mat],
+        elem_specular=mats.specular[mat], elem_shininess=mats.shininess[mat],
+        elem_mirror=mats.mirror[mat],
+        lights=(direct.lights_of(light.context)
+                if H is not None and light.context is not None else None),
+        rdiff=settings.rdiff if settings.per_pixel else None,
+        mirror_depth=settings.mirror_depth, diagonal=scene.diagonal)
+
+
+@dataclass(frozen=True)
+class Image:
+    """Step 4's result.
+
+    pixels : (H, W, 3) float64
+        Radiance, linear (W·m⁻²·sr⁻¹ of the scene's unit).
+    context : RenderContext
+        What the tiles read; ``context.vertex_radiance (V, 3)`` is what the store keeps (×π).
+    ambient : (3,) float64
+        The ambient term added for an unconverged solution (W/m², Cohen et al.).
+    seconds : float
+    """
+
+    pixels: np.ndarray
+    context: RenderContext
+    ambient: np.ndarray
+    seconds: float = 0.0
+
+    @property
+    def camera(self) -> Camera:
+        return self.context.camera
+
+    @property
+    def perpixel_elements(self) -> int:
+        """Elements whose direct light the per-pixel pass recomputes (eq. 9)."""
+        pp = self.context.elem_perpixel
+        return int(pp.sum()) if pp is not None else 0
+
+
+def image(scene: Scene, light: DirectLight, sol: Solution, settings: Settings, executor=None,
+          cam: Camera | None = None) -> Image:
+    """Step 4: render ``sol`` seen by ``cam`` (default :func:`camera`), tile by tile on
+    ``executor`` (``tile-…`` futures; default this process)."""
+    t = time.perf_counter()
+    ctx = context(scene, light, sol, settings, cam or camera(scene, settings))
+    parts = tiles(ctx.camera.width, ctx.camera.height)
+    pixels = np.zeros((ctx.camera.height, ctx.camera.width, 3))
+    done = (executor.tiles(ctx, parts) if executor is not None
+            else [render_tile(ctx, rows, cols) for rows, cols in parts])
+    for (rows, cols), tile in zip(parts, done, strict=True):
+        pixels[rows, cols] = tile
+    return Image(pixels=pixels, context=ctx,
+                 ambient=ambient(light.mesh.hierarchy, light.mesh.reflectance, sol.unshot),
+                 seconds=time.perf_counter() - t)

@@ -1,11 +1,26 @@
-"""Run settings: every option of ``daskrad run`` with its default (DESIGN §7).
+"""Run settings: every option of ``daskrad run`` with its default, stated once (DESIGN §7).
 
-``None`` means "derived from the scene" (sizes follow the scene's scale).
+``None`` means "derived from the scene" (sizes follow the scene's scale). :meth:`Settings.
+validate` checks every value against its range and the method registries before a run loads
+or writes anything.
 """
 
 from __future__ import annotations
 
+import math
+import re
 from dataclasses import asdict, dataclass, replace
+
+#: Largest item-buffer side: an R × R buffer of int32 ids and float64 depths per shooter
+#: point is 12 R² bytes (4096: 200 MB), and a shot's time grows as R².
+MAX_RESOLUTION = 4096
+#: Largest image side (the sample seeds assume fewer than 2¹⁶ columns and rows) and area:
+#: the float64 image is 24 bytes per pixel (2²⁶ pixels: 1.5 GiB).
+MAX_IMAGE_SIDE = 1 << 16
+MAX_IMAGE_PIXELS = 1 << 26
+#: Samples per pixel at most (the seeds leave 2¹⁰ per pixel, :data:`daskrad.render.SEED_STRIDE`).
+MAX_SPP = 1024
+_ADDRESS = re.compile(r"^(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]*):(\d{1,5})$")
 
 
 @dataclass(frozen=True)
@@ -48,3 +63,64 @@ class Settings:
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+    def validate(self) -> Settings:
+        """``self`` if every value is in range and every name is registered, else
+        :class:`~daskrad.errors.OptionError` naming the option (one line)."""
+        from daskrad.direct import AREA_METHODS
+        from daskrad.errors import OptionError
+        from daskrad.formfactor import METHODS
+
+        def bad(name: str, why: str):
+            raise OptionError(f"--{name.replace('_', '-')} {why}, got {getattr(self, name)!r}")
+
+        def integer(name: str, low: int, high: float = math.inf) -> None:
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= high:
+                bad(name, f"must be an integer in [{low}, {high:g}]")
+
+        def positive(name: str, optional: bool = False, zero: bool = False) -> None:
+            v = getattr(self, name)
+            if v is None and optional:
+                return
+            if (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+                    or not (v >= 0 if zero else v > 0)):
+                bad(name, "must be a finite number " + (">= 0" if zero else "> 0"))
+
+        if self.method not in METHODS:
+            bad("method", f"must be one of {', '.join(sorted(METHODS))}")
+        if self.area_method not in AREA_METHODS:
+            bad("area_method", f"must be one of {', '.join(sorted(AREA_METHODS))}")
+        integer("resolution", 2, MAX_RESOLUTION)
+        if self.edge_angle is not None:
+            positive("edge_angle")
+            if self.edge_angle > 90:
+                bad("edge_angle", "must be in (0, 90] degrees")
+        for name in ("patch_size", "element_size", "min_element_size"):
+            positive(name, optional=True)
+        positive("tolerance")
+        integer("max_iterations", 0)
+        integer("batch", 1, 1 << 16)
+        integer("spp", 1, MAX_SPP)
+        if self.workers is not None:      # None: chosen from the scene's size
+            integer("workers", 0, 1 << 12)
+        for name in ("width", "height"):
+            if getattr(self, name) is not None:
+                integer(name, 1, MAX_IMAGE_SIDE)
+        if self.width and self.height and self.width * self.height > MAX_IMAGE_PIXELS:
+            raise OptionError(f"--width {self.width} --height {self.height}: the image would "
+                              f"have more than {MAX_IMAGE_PIXELS} pixels")
+        integer("seed", 0)
+        integer("checkpoint_every", 1)
+        if not _ADDRESS.match(str(self.dashboard)) or not 0 <= int(
+                _ADDRESS.match(str(self.dashboard)).group(1)) <= 65535:
+            bad("dashboard", "must be HOST:PORT (port 0-65535)")
+        if self.scheduler is not None and not re.match(r"^[a-z]+://\S+:\d{1,5}$",
+                                                       str(self.scheduler)):
+            bad("scheduler", "must be an address like tcp://HOST:PORT")
+        positive("connect_timeout")
+        integer("area_samples", 1, 64)
+        positive("subdivide", zero=True)
+        positive("rdiff", zero=True)
+        integer("mirror_depth", 0, 64)
+        return self

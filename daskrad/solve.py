@@ -13,7 +13,8 @@ every element ``j`` (DESIGN §4)::
 
 to ``B_j`` and ``ΔB_j · A_j / A_p`` to the unshot radiosity of ``j``'s patch ``p``, then sets
 ``ΔB_i = 0``. Form factors depend only on geometry, so they can be computed ahead of time by any
-number of workers (:func:`daskrad.shoot.shoot_rows`); the updates are applied here, in order.
+number of workers (:func:`daskrad.formfactor.shooting.shoot_rows`); the updates are applied here,
+in order.
 
 Batches: the next batch is the ``K`` patches with the largest unshot *power*
 ``Σ_rgb ΔB_p · A_p``, chosen from the state after the previous-but-one batch was applied and
@@ -30,8 +31,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from daskrad.direct import DirectLight
+from daskrad.formfactor import shooting
 from daskrad.kernels import update
 from daskrad.mesh.types import Hierarchy
+from daskrad.settings import Settings
 
 
 @dataclass
@@ -217,3 +221,43 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
             on_batch(sol)
     sol.converged = unshot_rms(sol.unshot, h.patch_area) / reference <= tolerance
     return sol
+
+
+def start(light: DirectLight) -> Solution:
+    """The solution before the first shot, from step 2's direct light.
+
+    Two-pass (area lights gathered): ``B = E + ρH``, and only the reflected direct light is
+    unshot. One-pass: emitters are shot like any patch (``B = E``, unshot ``E``), with the
+    gathered point and directional light added on top of both.
+    """
+    mesh = light.mesh
+    h = mesh.hierarchy
+    if light.irradiance is not None and not light.emitters_shot:
+        return initial_solution(h, mesh.emission, light.reflected)
+    sol = initial_solution(h, mesh.emission)
+    if light.irradiance is not None:
+        sol.radiosity += light.reflected
+        sol.direct += light.reflected
+        sol.unshot += patch_average(h, light.reflected)
+        sol.initial_rms = unshot_rms(sol.unshot, h.patch_area)
+    return sol
+
+
+def radiosity(light: DirectLight, settings: Settings, executor, begin: Solution | None = None,
+              on_batch: Callable[[Solution], None] | None = None) -> Solution:
+    """Step 3: shoot until converged (:func:`solve`) on the mesh of ``light``.
+
+    ``executor`` computes the form-factor rows (:mod:`daskrad.distributed.executor`: in this
+    process, or Dask futures ``formfactor-…``); ``begin`` is the state to continue from
+    (a resumed checkpoint), by default :func:`start`; ``on_batch`` observes every applied
+    batch (progress bar, checkpoints, dashboard) and never changes the state.
+    """
+    mesh = light.mesh
+    h = mesh.hierarchy
+    executor.set_geometry(
+        shooting.make_context(h, settings.method, settings.resolution, grid=mesh.grid,
+                              tri_element=mesh.tri_element, edge_angle=settings.edge_angle),
+        h.generation)
+    return solve(h, mesh.reflectance, start(light) if begin is None else begin,
+                 executor.shots, batch=settings.batch, tolerance=settings.tolerance,
+                 max_iterations=settings.max_iterations, on_batch=on_batch)

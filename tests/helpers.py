@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad import solve
-from daskrad.run import _render_context, solve_scene
+from daskrad import render
+from daskrad.run import solve_scene
 from daskrad.settings import Settings
 
 
@@ -73,8 +73,5 @@ def render_context(scene, **opts):
     """``(ctx, h)``: the render context of ``scene`` solved with ``opts`` over the defaults
     patch 4, element 0.5, 1 sample per pixel, and its hierarchy."""
     settings = Settings(**{"patch_size": 4.0, "element_size": 0.5, "spp": 1, **opts})
-    extra: dict = {}
-    h, refl, sol, (_, tri_verts, tri_elem, grid) = solve_scene(scene, settings, extra=extra)
-    amb = solve.ambient(h, refl, sol.unshot)
-    return _render_context(scene, settings, h, refl, sol, amb, extra,
-                           (tri_verts, tri_elem, grid), scene.camera), h
+    h, _, sol, light = solve_scene(scene, settings)
+    return render.context(scene, light, sol, settings, scene.camera), h

@@ -28,7 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from daskrad import shoot, solve
+from daskrad import solve
+from daskrad.formfactor import shooting
 from daskrad.mesh import build_hierarchy
 from daskrad.run import run, solve_scene
 from daskrad.scene import box_scene, scene_from_arrays
@@ -194,9 +195,9 @@ def max_row_sum(scene, settings: Settings = BOX) -> float:
     """Largest ``Σ_j F_ij`` over every patch of ``scene``'s hierarchy (a shot sends
     ``Σ_j F_ij`` of what the shooter holds)."""
     h = build_hierarchy(scene, settings.patch_size, settings.element_size)
-    ctx = shoot.make_context(h, settings.method, settings.resolution,
+    ctx = shooting.make_context(h, settings.method, settings.resolution,
                              edge_angle=settings.edge_angle)
-    return max(float(f.sum()) for _, f in shoot.shoot_rows(ctx, np.arange(h.n_patches)))
+    return max(float(f.sum()) for _, f in shooting.shoot_rows(ctx, np.arange(h.n_patches)))
 
 
 # --- 1. degenerate geometry -----------------------------------------------------------------
@@ -409,12 +410,12 @@ def accumulation_drift(n_shots: int, subdivisions: int, method: str = "analytic"
     h = build_hierarchy(scene, size, size)
     rho = scene.materials.diffuse[h.elem_material]
     sol = solve.initial_solution(h, emission_of(scene, h))
-    ctx = shoot.make_context(h, method, resolution)
+    ctx = shooting.make_context(h, method, resolution)
     states = {t: (sol.radiosity.astype(t), sol.unshot.astype(t)) for t in
               (np.float32, np.longdouble)}
     for _ in range(n_shots):
         p = int(solve.next_batch(sol.unshot, h.patch_area, 1)[0])
-        ids, f = shoot.shoot_rows(ctx, [p])[0]
+        ids, f = shooting.shoot_rows(ctx, [p])[0]
         for t, (B, U) in states.items():
             dB = U[p].copy()
             U[p] = 0

@@ -135,10 +135,9 @@ def test_closed_room_lit_by_point_light_obeys_power_balance(rho):
                       point_lights=(np.array([[0.4, 0.7, 0.5]]), intensity[None]))
     settings = Settings(patch_size=0.3, element_size=0.1, resolution=128, tolerance=1e-5,
                         max_iterations=20000, subdivide=0.0)
-    extra: dict = {}
-    h, refl, sol, _ = solve_scene(scene, settings, extra=extra)
+    h, refl, sol, light = solve_scene(scene, settings)
     assert sol.converged
-    He = direct.element_mean(h, extra["vertex_irradiance"])
+    He = direct.element_mean(h, light.irradiance)
     phi_direct = (He * h.elem_area[:, None]).sum(axis=0)
     np.testing.assert_allclose(phi_direct, 4 * math.pi * intensity, rtol=0.01)
     total = (sol.radiosity * h.elem_area[:, None]).sum(axis=0)

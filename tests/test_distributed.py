@@ -121,7 +121,8 @@ def test_worker_cache_loads_each_context_once_per_process(cluster_client, tmp_pa
     store = Store(tmp_path / "c.zarr", settings)
     executor = DaskExecutor(cluster_client, store)
     scene = load_scene(CORNELL)
-    solve_scene(scene, settings, executor, store=store)
+    store.open()
+    solve_scene(scene, settings, executor)
     after = cluster_client.run(worker.state)
     loads = sum(s["loads"] for s in after.values()) - before
     # each of 2 workers reads each context (direct per refinement level, shoot) at most once:
@@ -145,9 +146,9 @@ def test_worker_killed_mid_run_is_replaced_and_bits_are_the_same(reference, clus
     store = Store(tmp_path / "k.zarr", settings)
     executor = DaskExecutor(cluster_client, store)
     scene = load_scene(CORNELL)
+    store.open()
     try:
-        _, _, sol, _ = solve_scene(scene, settings, executor, on_batch=kill_a_worker,
-                                   store=store)
+        _, _, sol, _ = solve_scene(scene, settings, executor, on_batch=kill_a_worker)
     finally:
         cluster_client.wait_for_workers(2, timeout=60)  # the nanny restarts it
     assert killed
@@ -223,13 +224,14 @@ def test_loopback_cluster_script_and_scheduler_option(reference, tmp_path):
 def test_without_workers_option_small_scenes_stay_in_process():
     # DESIGN §4: a cluster costs seconds a small scene does not need; a big one gets 2 workers
     from daskrad.cli import build_parser
-    from daskrad.run import _auto_workers, settings_from_args
+    from daskrad.commands import settings_from_args
+    from daskrad.distributed import auto_workers
 
     args = build_parser().parse_args(["run", str(CORNELL)])
     assert settings_from_args(args).workers is None          # decided by run() from the scene
     scene = load_scene(CORNELL)
-    assert _auto_workers(scene, Settings()) == 0              # ~3,700 elements
-    assert _auto_workers(scene, Settings(element_size=5.0)) == 2   # ~119,000 elements
+    assert auto_workers(scene, Settings()) == 0              # ~3,700 elements
+    assert auto_workers(scene, Settings(element_size=5.0)) == 2   # ~119,000 elements
     explicit = build_parser().parse_args(["run", str(CORNELL), "--workers", "0"])
     assert settings_from_args(explicit).workers == 0
 

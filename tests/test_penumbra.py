@@ -1,4 +1,4 @@
-"""Shooters sampled at several points where an occluder is near (shoot.PENUMBRA, issue 7).
+"""Shooters sampled at several points where an occluder is near (shooting.PENUMBRA, issue 7).
 
 The blocker test (kernels/blockers.py) is a necessary condition for occlusion, so these tests
 check both directions: it finds the occluders that are there and finds none in scenes that have
@@ -12,20 +12,22 @@ import math
 import numpy as np
 import pytest
 
-from daskrad import formfactor, shoot
+from daskrad import formfactor
+from daskrad.formfactor import shooting
 from daskrad.mesh import build_hierarchy
 from daskrad.scene import box_scene
+from daskrad.scene.corners import real_corners
 from tests import stress_cases as sc
 
 
 def _context(scene, patch=0.25, element=0.125, method="hemisphere", resolution=64):
     h = build_hierarchy(scene, patch, element)
-    return h, shoot.make_context(h, method, resolution)
+    return h, shooting.make_context(h, method, resolution)
 
 
 def _blocker_distance(ctx, p):
     """Distance to the nearest occluder of patch ``p`` in its own radii."""
-    return shoot.occluder_distance(ctx, p) / ctx.patch_radius[p]
+    return shooting.occluder_distance(ctx, p) / ctx.patch_radius[p]
 
 
 def test_a_convex_room_has_no_occluders_and_keeps_the_centroid_row_bit_for_bit():
@@ -34,7 +36,7 @@ def test_a_convex_room_has_no_occluders_and_keeps_the_centroid_row_bit_for_bit()
     h, ctx = _context(scene)
     for p in range(h.n_patches):
         assert _blocker_distance(ctx, p) == np.inf
-        points, weights = shoot.shooter_points(ctx, p)
+        points, weights = shooting.shooter_points(ctx, p)
         np.testing.assert_array_equal(points, h.patch_centroid[p][None])
         np.testing.assert_array_equal(weights, [1.0])
     # every wall's plane has the whole scene in front of it, none behind
@@ -50,21 +52,21 @@ def test_the_fin_is_an_occluder_for_the_floor_beside_it_and_not_for_the_far_ceil
     assert len(floor) == 4          # the floor patches touching the fin's foot, both sides
     for p in floor:
         assert _blocker_distance(ctx, p) < 0.5       # its foot touches the patch
-        assert len(shoot.shooter_points(ctx, p)[0]) == 2 * len(shoot.SHOOTER_POINTS)  # 2 tri.
+        assert len(shooting.shooter_points(ctx, p)[0]) == 2 * len(shooting.SHOOTER_POINTS)  # 2 tri.
     # a ceiling corner patch: the fin (top at y = 0.4) is 3.9 radii away (sampled), and
     # farther than 4 when the patches are halved (the centroid alone)
     corner = np.flatnonzero((h.patch_centroid[:, 1] > 1 - 1e-12)
                             & (np.linalg.norm(h.patch_centroid[:, [0, 2]] - 0.125, axis=1)
                                < 1e-9))
     assert len(corner) == 1
-    assert len(shoot.shooter_points(ctx, corner[0])[0]) == 2 * len(shoot.SHOOTER_POINTS)
+    assert len(shooting.shooter_points(ctx, corner[0])[0]) == 2 * len(shooting.SHOOTER_POINTS)
     h, ctx = _context(sc.degenerate_scenes()["non-manifold edge (fin)"], 0.125, 0.0625)
     corner = np.flatnonzero((h.patch_centroid[:, 1] > 1 - 1e-12)
                             & (np.linalg.norm(h.patch_centroid[:, [0, 2]] - 0.0625, axis=1)
                                < 1e-9))
     assert len(corner) == 1
     assert _blocker_distance(ctx, corner[0]) > 4.0
-    assert len(shoot.shooter_points(ctx, corner[0])[0]) == 1
+    assert len(shooting.shooter_points(ctx, corner[0])[0]) == 1
 
 
 def _floor_and(*quads):
@@ -108,7 +110,7 @@ def test_shooter_points_are_an_area_quadrature_of_the_patch(p):
     # weights sum to 1, the points lie in the patch's plane, and their weighted mean is its
     # centroid (sub-triangle centroids weighted by area: exact for any planar polygon)
     h, ctx = _context(sc.degenerate_scenes()["non-manifold edge (fin)"])
-    points, weights = shoot.shooter_points(ctx, p)
+    points, weights = shooting.shooter_points(ctx, p)
     assert weights.sum() == pytest.approx(1.0, abs=1e-15)
     assert np.all(weights > 0)
     np.testing.assert_allclose((points - h.patch_centroid[p]) @ h.patch_normal[p], 0.0,
@@ -126,8 +128,8 @@ def test_sampling_the_shooter_brings_fin_rows_closer_to_area_to_area_visibility(
     p = int(np.flatnonzero((np.abs(h.patch_centroid[:, 1]) < 1e-12)
                            & (np.abs(h.patch_centroid[:, 0] - 0.375) < 1e-9)
                            & (np.abs(h.patch_centroid[:, 2] - 0.375) < 1e-9))[0])
-    corners = h.vertices[shoot._corners(h.patch_verts[p])]
-    bary = shoot._strata(4)
+    corners = h.vertices[real_corners(h.patch_verts[p])]
+    bary = shooting.strata(4)
     pts = np.concatenate([bary @ corners[[0, 1, 2]], bary @ corners[[0, 2, 3]]])
     normals = np.repeat(h.patch_normal[p][None], len(pts), axis=0)
     reference = formfactor.raycast_rows(pts, normals, h.vertices, h.elem_verts,
@@ -135,7 +137,7 @@ def test_sampling_the_shooter_brings_fin_rows_closer_to_area_to_area_visibility(
     centroid = formfactor.shooter_rows(h.patch_centroid[p][None], h.patch_normal[p][None],
                                        h.vertices, h.elem_verts, method="hemisphere",
                                        resolution=64)[0]
-    sampled = shoot.shoot_row(ctx, p)
+    sampled = shooting.shoot_row(ctx, p)
     far = np.linalg.norm(h.elem_centroid - h.patch_centroid[p], axis=1) > 0.5  # not near field
     err_centroid = np.abs(centroid - reference)[far].sum()
     err_sampled = np.abs(sampled - reference)[far].sum()
@@ -148,20 +150,20 @@ def test_row_cache_gives_the_bits_of_a_recomputation_within_its_budget():
     # rows keeps at most three, the most recently used
     h, ctx = _context(sc.degenerate_scenes()["non-manifold edge (fin)"])
     ids = np.arange(0, h.n_patches, 9)
-    fresh = shoot.shoot_rows(ctx, ids)
-    cache = shoot.RowCache()
-    shoot.shoot_rows(ctx, ids, cache)
-    again = shoot.shoot_rows(ctx, ids, cache)
+    fresh = shooting.shoot_rows(ctx, ids)
+    cache = shooting.RowCache()
+    shooting.shoot_rows(ctx, ids, cache)
+    again = shooting.shoot_rows(ctx, ids, cache)
     assert (cache.misses, cache.hits) == (len(ids), len(ids))
     for (a, fa), (b, fb) in zip(fresh, again, strict=True):
         np.testing.assert_array_equal(a, b)
         np.testing.assert_array_equal(fa, fb)
         assert not fb.flags.writeable
     budget = sum(a.nbytes + f.nbytes for a, f in fresh[-3:])
-    small = shoot.RowCache(max_bytes=budget)
-    shoot.shoot_rows(ctx, ids, small)
+    small = shooting.RowCache(max_bytes=budget)
+    shooting.shoot_rows(ctx, ids, small)
     assert small.nbytes <= budget
-    shoot.shoot_rows(ctx, ids[-3:], small)
+    shooting.shoot_rows(ctx, ids[-3:], small)
     assert small.hits == 3
 
 
@@ -188,12 +190,12 @@ def test_points_under_a_block_standing_on_the_shooter_are_dropped():
                               [[0.5] * 3], [[1.0] * 3])
     h, ctx = _context(scene, patch=1.0, element=0.25)
     floor = int(np.flatnonzero(h.patch_polygon == 0)[0])
-    corners = h.vertices[shoot._corners(h.patch_verts[floor])]
-    bary = shoot.SHOOTER_POINTS
+    corners = h.vertices[real_corners(h.patch_verts[floor])]
+    bary = shooting.SHOOTER_POINTS
     every = np.concatenate([bary @ corners[[0, 1, 2]], bary @ corners[[0, 2, 3]]])
     under = np.all((every[:, :2] > lo) & (every[:, :2] < hi), axis=1)
     assert 0 < under.sum() < len(every)
-    points, weights = shoot.shooter_points(ctx, floor)
+    points, weights = shooting.shooter_points(ctx, floor)
     kept = {tuple(np.round(q, 12)) for q in points}
     assert kept == {tuple(np.round(q, 12)) for q in every[~under]}
     assert weights.sum() == pytest.approx(1.0, abs=1e-15)
@@ -218,7 +220,7 @@ def test_points_under_an_open_two_sided_shelf_are_kept_whatever_the_face_order(u
     h, ctx = _context(scene, patch=1.0, element=0.5)
     assert ctx.polygon_two_sided.tolist() == [False, True, True, False]
     floor = int(np.flatnonzero(h.patch_polygon == 0)[0])
-    points, weights = shoot.shooter_points(ctx, floor)
-    assert len(points) == 2 * len(shoot.SHOOTER_POINTS)
+    points, weights = shooting.shooter_points(ctx, floor)
+    assert len(points) == 2 * len(shooting.SHOOTER_POINTS)
     under = (points[:, 0] > 0.3) & (points[:, 0] < 0.8)
     assert under.any()

@@ -103,7 +103,7 @@ def test_next_batch_is_deterministic_and_skips_in_flight():
 def _perpendicular_squares(n: int):
     """Shoot context: a unit-square patch in y = 0 facing +y, and the unit square x, y in
     [0, 1] at z = 0 facing +z that shares its edge, split into n × n receiver elements."""
-    from daskrad import shoot
+    from daskrad.formfactor import shooting
 
     g = np.linspace(0.0, 1.0, n + 1)
     x, y = np.meshgrid(g, g, indexing="ij")
@@ -112,7 +112,7 @@ def _perpendicular_squares(n: int):
     i, j = (a.ravel() for a in np.meshgrid(np.arange(n), np.arange(n), indexing="ij"))
     corner = 4 + i * (n + 1) + j
     ev = np.column_stack([corner, corner + n + 1, corner + n + 2, corner + 1]).astype(np.int32)
-    return shoot.ShootContext(
+    return shooting.ShootContext(
         vertices=v.astype(float), elem_verts=ev, elem_area=np.full(n * n, 1.0 / n**2),
         elem_centroid=v[ev].mean(axis=1), elem_normal=np.tile([0.0, 0.0, 1.0], (n * n, 1)),
         elem_polygon=np.ones(n * n, np.int32), patch_verts=np.array([[0, 1, 2, 3]], np.int32),
@@ -131,10 +131,10 @@ def test_near_receiver_sharing_an_edge_averages_F_ji_over_its_area(n):
     # receiver's elements (area-weighted) it must give Howell's factor. At the centroid alone
     # it errs by 5.0 % (n = 1) and 1.0 % (n = 2), the integrand varying fast near the shared
     # edge; stratified (2 × 2 per triangle) it measured 0.66 % and 0.16 %: limit 1 % / 0.3 %.
-    from daskrad import shoot
+    from daskrad.formfactor import shooting
 
     ctx = _perpendicular_squares(n)
-    F = shoot.receiver_average(ctx, 0, np.arange(n * n))
+    F = shooting.receiver_average(ctx, 0, np.arange(n * n))
     assert np.all(F > 0)
     np.testing.assert_allclose((F * ctx.elem_area).sum(), 0.200044,
                                rtol={1: 0.01, 2: 0.003}[n])

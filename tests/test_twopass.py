@@ -6,9 +6,9 @@ import math
 
 import numpy as np
 
-from daskrad import render, solve
+from daskrad import render
 from daskrad.io import read_exr
-from daskrad.run import _render_context, run, solve_scene
+from daskrad.run import run, solve_scene
 from daskrad.scene import Camera, scene_from_arrays
 from daskrad.settings import Settings
 
@@ -25,12 +25,8 @@ def test_plane_under_a_directional_light_renders_rho_E_cos_over_pi():
                               emission=[[0, 0, 0]], camera=cam,
                               directional_lights=(d[None], [[2.0, 1.0, 3.0]]))
     settings = Settings(patch_size=1.0, element_size=0.25, spp=1)
-    extra: dict = {}
-    h, refl, sol, (tris, tri_verts, tri_elem, grid) = solve_scene(scene, settings, extra=extra)
-    amb = solve.ambient(h, refl, sol.unshot)
-    ctx = _render_context(scene, settings, h, refl, sol, amb, extra,
-                          (tri_verts, tri_elem, grid), cam)
-    image = render.render(ctx)
+    _, _, sol, light = solve_scene(scene, settings)
+    image = render.render(render.context(scene, light, sol, settings, cam))
     expected = np.array([0.6, 0.5, 0.4]) * np.array([2.0, 1.0, 3.0]) * (-d[2]) / math.pi
     np.testing.assert_allclose(image, np.broadcast_to(expected, image.shape), rtol=1e-9)
 

@@ -21,3 +21,27 @@ def connect(settings, store=None):
     if settings.scheduler:
         return connect_scheduler(settings, store)
     return start_local(settings, store)
+
+
+#: Without --workers, a scene of fewer elements (estimated) runs in-process: starting a
+#: LocalCluster costs 2–3 s, more than 2 workers save on the default Cornell box (~6 s).
+AUTO_CLUSTER_ELEMENTS = 20_000
+
+
+def auto_workers(scene, settings) -> int:
+    """``--workers`` not given: 2 local workers, or 0 for a small scene (DESIGN §4)."""
+    from daskrad.mesh import default_sizes, polygon_areas
+
+    size = settings.element_size or default_sizes(scene)[1]
+    estimate = float(polygon_areas(scene).sum()) / size**2
+    return 0 if estimate < AUTO_CLUSTER_ELEMENTS else 2
+
+
+def executor_for(settings, store=None):
+    """Where the tasks of a run with ``settings`` run: this process (``workers`` 0 and no
+    scheduler) or a Dask cluster (:func:`connect`)."""
+    from daskrad.distributed.executor import InProcess
+
+    if settings.workers == 0 and settings.scheduler is None:
+        return InProcess()
+    return connect(settings, store)

@@ -21,10 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from daskrad import render, shoot
+from daskrad import render
 from daskrad.distributed import worker
 from daskrad.distributed.store import Store
 from daskrad.errors import OptionError
+from daskrad.formfactor import shooting
 
 #: Seconds between two counts of the cluster's workers.
 COUNT_SECONDS = 2.0
@@ -86,7 +87,7 @@ class DaskExecutor:
 
     # --- the executor interface -------------------------------------------------------------
 
-    def set_geometry(self, shoot_ctx: shoot.ShootContext, generation: int = 0) -> None:
+    def set_geometry(self, shoot_ctx: shooting.ShootContext, generation: int = 0) -> None:
         token = self.store.put_context("shoot", shoot_ctx)
         self._shoot = (generation, token)
         self._probe("shoot", token)

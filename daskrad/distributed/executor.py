@@ -4,7 +4,7 @@ Both executors expose the same calls, so the pipeline is written once:
 
 - ``set_geometry(shoot_ctx, generation=0)``: the form-factor task's context;
 - ``shots(batch_no, patch_ids)`` → handle with ``.result()`` = rows of
-  :func:`daskrad.shoot.shoot_rows`;
+  :func:`daskrad.formfactor.shooting.shoot_rows`;
 - ``tiles(render_ctx, tiles)`` → list of tile images of :func:`daskrad.render.render_tile`;
 - ``publish(key, value)``: progress for the dashboard (a no-op here);
 - ``close()``.
@@ -20,7 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad import render, shoot
+from daskrad import render
+from daskrad.formfactor import shooting
 
 
 class _Done:
@@ -41,16 +42,16 @@ class InProcess:
     workers = 0
     dashboard_link = None
 
-    def __init__(self, shoot_ctx: shoot.ShootContext | None = None):
+    def __init__(self, shoot_ctx: shooting.ShootContext | None = None):
         self.shoot_ctx = shoot_ctx
-        self.rows = shoot.RowCache()
+        self.rows = shooting.RowCache()
 
-    def set_geometry(self, shoot_ctx: shoot.ShootContext, generation: int = 0) -> None:
+    def set_geometry(self, shoot_ctx: shooting.ShootContext, generation: int = 0) -> None:
         self.shoot_ctx = shoot_ctx
-        self.rows = shoot.RowCache()
+        self.rows = shooting.RowCache()
 
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Done:
-        return _Done(shoot.shoot_rows(self.shoot_ctx, patch_ids, self.rows))
+        return _Done(shooting.shoot_rows(self.shoot_ctx, patch_ids, self.rows))
 
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
         return [render.render_tile(ctx, rows, cols) for rows, cols in tiles]

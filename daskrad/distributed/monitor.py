@@ -28,14 +28,15 @@ CURVE_POINTS = 400
 class Preview:
     """A small tone-mapped PNG of the current solution, rendered in the client."""
 
-    def __init__(self, h, reflectance, tri_verts, tri_element, grid, camera):
-        self.h, self.reflectance = h, reflectance
+    def __init__(self, mesh, camera):
+        self.h, self.reflectance = mesh.hierarchy, mesh.reflectance
         scale = min(1.0, PREVIEW_WIDTH / camera.width)
         cam = type(camera)(eye=camera.eye, look_at=camera.look_at, up=camera.up,
                            fov=camera.fov, width=max(1, round(camera.width * scale)),
                            height=max(1, round(camera.height * scale)))
-        self.ctx = render.RenderContext(grid=grid, tri_verts=tri_verts, tri_element=tri_element,
-                                        elem_normal=h.elem_normal, vertex_radiance=None,
+        self.ctx = render.RenderContext(grid=mesh.grid, tri_verts=mesh.tri_verts,
+                                        tri_element=mesh.tri_element,
+                                        elem_normal=self.h.elem_normal, vertex_radiance=None,
                                         camera=cam, spp=1)
 
     def png_base64(self, sol: solve.Solution) -> str:

@@ -16,15 +16,16 @@ from collections import OrderedDict
 
 import numpy as np
 
-from daskrad import render, shoot
+from daskrad import render
 from daskrad.distributed.store import load_context
+from daskrad.formfactor import shooting
 
 #: Contexts kept per process: the current shoot and render contexts, plus one generation back
 #: while a refinement switches over.
 CACHE_SIZE = 4
 
 _cache: OrderedDict = OrderedDict()
-_rows: OrderedDict = OrderedDict()  # (path, generation, token) → shoot.RowCache
+_rows: OrderedDict = OrderedDict()  # (path, generation, token) → shooting.RowCache
 _lock = threading.Lock()          # a worker with several threads loads a context once
 loads = 0                         # contexts read from a store by this process (tests look)
 
@@ -47,16 +48,17 @@ def context(path: str, kind: str, generation: int, token: str):
 
 
 def shoot_task(path: str, generation: int, token: str, patch_ids: np.ndarray) -> list:
-    """Form-factor rows of the shooters ``patch_ids`` (:func:`daskrad.shoot.shoot_rows`), with
-    the rows this process already computed for that geometry."""
+    """Form-factor rows of the shooters ``patch_ids``
+    (:func:`daskrad.formfactor.shooting.shoot_rows`), with the rows this process already
+    computed for that geometry."""
     key = (path, generation, token)
     with _lock:
         rows = _rows.get(key)
         if rows is None:
-            rows = _rows[key] = shoot.RowCache()
+            rows = _rows[key] = shooting.RowCache()
             while len(_rows) > 1:           # only the current geometry shoots
                 _rows.popitem(last=False)
-    return shoot.shoot_rows(context(path, "shoot", generation, token), patch_ids, rows)
+    return shooting.shoot_rows(context(path, "shoot", generation, token), patch_ids, rows)
 
 
 def forget_rows() -> None:

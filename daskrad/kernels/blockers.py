@@ -3,8 +3,8 @@
 A form factor whose visibility is sampled at the shooter's centroid puts every receiver either
 in light or in shadow; the true visibility from an area shooter of radius ``r`` past an edge at
 distance ``d`` has a penumbra ``~ r/d`` radians wide. The solver samples the shooter at more
-points where ``d`` is a few ``r`` or less (:func:`daskrad.shoot.shooter_points`); this kernel
-finds ``d`` for one shooter.
+points where ``d`` is a few ``r`` or less
+(:func:`daskrad.formfactor.shooting.shooter_points`); this kernel finds ``d`` for one shooter.
 
 An element ``b`` can block a segment from a shooter point ``s`` to a receiver point ``x`` only
 if ``s`` and ``x`` lie strictly on opposite sides of ``b``'s plane. So ``b`` counts when it

@@ -21,6 +21,8 @@ import numpy as np
 from daskrad.errors import OptionError, SceneError
 from daskrad.kernels.subdivide import subdivide_quads, subdivide_triangles
 from daskrad.mesh.types import Hierarchy
+from daskrad.scene.corners import is_quad as quad_mask
+from daskrad.scene.corners import repeat_third, split_quads
 from daskrad.scene.types import Scene
 
 #: Patch edge ≈ diagonal / PATCHES_PER_DIAGONAL by default (see :func:`default_sizes`).
@@ -85,9 +87,7 @@ def polygon_areas(scene: Scene) -> np.ndarray:
 def _corners(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     """``(Q, 4, 3)`` corners (a triangle repeats c2 as c3) and ``(Q,) bool`` is-quad."""
     poly = np.asarray(scene.polygons)
-    is_quad = poly[:, 3] >= 0
-    idx = np.where(is_quad[:, None], poly, poly[:, [0, 1, 2, 2]])
-    return np.asarray(scene.vertices, dtype=np.float64)[idx], is_quad
+    return np.asarray(scene.vertices, dtype=np.float64)[repeat_third(poly)], quad_mask(poly)
 
 
 def build_hierarchy(scene: Scene, patch_size: float | None = None,
@@ -194,7 +194,7 @@ def _areas_centroids(vertices: np.ndarray, verts: np.ndarray,
     A quad is the two triangles ``(a, b, c)`` and ``(a, c, d)``; a triangle is ``(a, b, c)``
     plus the empty ``(a, c, c)``.
     """
-    d_idx = np.where(verts[:, 3] >= 0, verts[:, 3], verts[:, 2])
+    d_idx = repeat_third(verts)[:, 3]
     a, b, c, d = (vertices[verts[:, 0]], vertices[verts[:, 1]], vertices[verts[:, 2]],
                   vertices[d_idx])
     ac = c - a
@@ -218,13 +218,8 @@ def hierarchy_triangles(h: Hierarchy) -> tuple[np.ndarray, np.ndarray, np.ndarra
     tri_element : (T,) int32
         The element of each triangle, non-decreasing.
     """
-    ev = h.elem_verts
-    is_quad = ev[:, 3] >= 0
-    first = ev[:, :3]
-    second = ev[is_quad][:, [0, 2, 3]]
-    idx = np.concatenate([first, second])
-    owner = np.concatenate([np.arange(len(ev), dtype=np.int32),
-                            np.flatnonzero(is_quad).astype(np.int32)])
+    idx, owner = split_quads(h.elem_verts)
+    owner = owner.astype(np.int32)
     order = np.argsort(owner, kind="stable")
     tri_verts = np.ascontiguousarray(idx[order], dtype=np.int32)
     return h.vertices[tri_verts], tri_verts, owner[order]

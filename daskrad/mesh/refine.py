@@ -209,6 +209,7 @@ def resolve_tvertices(values: np.ndarray, tv: TVertices) -> np.ndarray:
 
 def refine(h: Hierarchy, vertex_values: np.ndarray,
            evaluate: Callable[[Hierarchy, int, int], np.ndarray], *,
+           scale: Callable[[Hierarchy], np.ndarray] | None = None,
            threshold: float = THRESHOLD, min_size: float, max_levels: int = 8
            ) -> tuple[Hierarchy, np.ndarray, TVertices, int]:
     """Split elements whose corner values differ too much, level by level.
@@ -216,16 +217,20 @@ def refine(h: Hierarchy, vertex_values: np.ndarray,
     Parameters
     ----------
     vertex_values : (V, k) float64
-        The value tested (the reflected direct light ``ρ · H``) at every vertex of ``h``.
+        The value at every vertex of ``h`` (the direct irradiance ``H``).
     evaluate : callable
         ``evaluate(h_new, start, stop) → (stop − start, k)`` computes the value at the new
         vertices ``start:stop`` of the refined hierarchy (the direct pass on them only).
+    scale : callable, optional
+        ``scale(h) → (V, k)``, a factor per vertex applied before the spread is tested (the
+        reflectance: what must be smooth is the light that leaves, ``ρH``); default 1.
     threshold : float
         Relative spread (see :func:`needs_split`); ``0`` or less disables refinement.
     min_size : float
         Elements whose longest edge is at most this are not split (scene units).
 
-    Returns ``(hierarchy, vertex_values, t_vertices, levels)``.
+    Returns ``(hierarchy, vertex_values, t_vertices, levels)``: the values at every vertex of
+    the refined hierarchy, unscaled.
     """
     values = np.asarray(vertex_values, dtype=np.float64)
     keys = np.zeros(0, np.int64)
@@ -234,7 +239,8 @@ def refine(h: Hierarchy, vertex_values: np.ndarray,
     if threshold <= 0:
         return h, values, TVertices.empty(), 0
     while levels < max_levels:
-        split = needs_split(h, values, threshold, min_size)
+        tested = values if scale is None else scale(h) * values
+        split = needs_split(h, tested, threshold, min_size)
         if not split.any():
             break
         nv = len(h.vertices)

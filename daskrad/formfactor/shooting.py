@@ -44,8 +44,9 @@ import numpy as np
 from daskrad import formfactor, tolerances
 from daskrad.kernels.blockers import UNKNOWN, nearest_blocker
 from daskrad.kernels.geometry import orthonormal_basis, scene_diagonal
-from daskrad.kernels.grid import closest_hit
+from daskrad.kernels.grid import Grid, closest_hit
 from daskrad.mesh.types import Hierarchy
+from daskrad.scene.corners import QUAD_HALVES, real_corners, repeat_third
 
 #: A receiver closer to the shooter's centroid than ``NEAR_FIELD × radius`` is near: there the
 #: point-sampled factor errs by more than a few per cent, (r/d)² > 1/16.
@@ -93,7 +94,9 @@ class ShootContext:
     ``elem_radius : (E,)`` are the largest distances from a centroid to the corners,
     ``polygon_sides : (Q,) int8`` where the scene lies about each polygon's plane, filled in
     lazily (:func:`daskrad.kernels.blockers.nearest_blocker`), ``polygon_two_sided : (Q,) bool``
-    (:func:`two_sided_polygons`), ``eps`` the coplanarity tolerance (a length).
+    (:func:`two_sided_polygons`), ``eps`` the coplanarity tolerance (a length). ``grid`` is
+    the voxel grid over the elements' triangles and ``tri_element : (T,) int`` the element of
+    each of its triangles: the mesh's own (:class:`daskrad.preprocess.Mesh`), built once.
     """
 
     vertices: np.ndarray
@@ -115,14 +118,24 @@ class ShootContext:
     method: str
     resolution: int
     options: dict
+    grid: Grid | None = None
+    tri_element: np.ndarray | None = None
 
 
-def make_context(h: Hierarchy, method: str, resolution: int, **options) -> ShootContext:
-    """The task context of a hierarchy; refuses an unknown method before any work starts."""
+def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None = None,
+                 tri_element: np.ndarray | None = None, **options) -> ShootContext:
+    """The task context of a hierarchy; refuses an unknown method before any work starts.
+
+    ``grid`` and ``tri_element`` are the voxel grid over ``h``'s element triangles and the
+    element of each triangle (the pipeline passes the mesh's own); built here when omitted.
+    """
     formfactor.get_method(method)
+    if grid is None or tri_element is None:
+        grid, tri_element = formfactor.element_grid(h.vertices, h.elem_verts)
+
     def radius(verts, centroid):
-        v = np.where(verts < 0, verts[:, 2:3], verts)
-        return np.linalg.norm(h.vertices[v] - centroid[:, None, :], axis=2).max(axis=1)
+        corners = h.vertices[repeat_third(verts)]
+        return np.linalg.norm(corners - centroid[:, None, :], axis=2).max(axis=1)
 
     eps = tolerances.COPLANAR * scene_diagonal(h.vertices)
     return ShootContext(
@@ -135,6 +148,7 @@ def make_context(h: Hierarchy, method: str, resolution: int, **options) -> Shoot
         polygon_sides=np.full(len(h.polygon_material), UNKNOWN, np.int8),
         polygon_two_sided=two_sided_polygons(h, eps), eps=eps,
         method=method, resolution=resolution, options=dict(options),
+        grid=grid, tri_element=np.asarray(tri_element),
     )
 
 
@@ -147,9 +161,9 @@ def shooter_points(ctx: ShootContext, p: int) -> tuple[np.ndarray, np.ndarray]:
     """
     if not occluder_distance(ctx, p) < PENUMBRA * ctx.patch_radius[p]:
         return ctx.patch_centroid[p][None], np.ones(1)
-    corners = _corners(ctx.patch_verts[p])
+    corners = real_corners(ctx.patch_verts[p])
     bary = SHOOTER_POINTS
-    halves = ctx.vertices[corners[[[0, 1, 2], [0, 2, 3]][:len(corners) - 2]]]
+    halves = ctx.vertices[corners[QUAD_HALVES[:len(corners) - 2]]]
     area = 0.5 * np.linalg.norm(np.cross(halves[:, 1] - halves[:, 0],
                                          halves[:, 2] - halves[:, 0]), axis=1)
     points = np.einsum("kc,hcx->hkx", bary, halves).reshape(-1, 3)
@@ -164,7 +178,7 @@ def occluder_distance(ctx: ShootContext, p: int) -> float:
     """Distance from patch ``p``'s centroid to its nearest possible occluder, less that
     element's radius; ``inf`` when nothing can occlude it
     (:func:`daskrad.kernels.blockers.nearest_blocker`)."""
-    return nearest_blocker(ctx.vertices[_corners(ctx.patch_verts[p])], ctx.patch_centroid[p],
+    return nearest_blocker(ctx.vertices[real_corners(ctx.patch_verts[p])], ctx.patch_centroid[p],
                            ctx.patch_normal[p], ctx.patch_polygon[p], ctx.vertices,
                            ctx.elem_verts, ctx.elem_centroid, ctx.elem_normal, ctx.elem_radius,
                            ctx.elem_polygon, ctx.polygon_sides, ctx.eps, GRAZING)
@@ -198,7 +212,9 @@ def _enclosed(ctx: ShootContext, points: np.ndarray, normal: np.ndarray) -> np.n
     too dark, the floor patches partly under a block shooting past them. A two-sided face (two
     coincident faces, :func:`two_sided_polygons`) always faces the point.
     """
-    grid, tri_elem = formfactor.element_grid(ctx.vertices, ctx.elem_verts)
+    grid, tri_elem = ctx.grid, ctx.tri_element
+    if grid is None:        # a context made by hand, without the mesh's grid
+        grid, tri_elem = formfactor.element_grid(ctx.vertices, ctx.elem_verts)
     t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(*normal)
     frame = np.array([[t1x, t1y, t1z], [t2x, t2y, t2z], normal])
     dirs = _PROBES @ frame                                     # (13, 3) world directions
@@ -247,18 +263,13 @@ def _average(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
     return (weights[:, None] * values).sum(axis=0)
 
 
-def _corners(verts: np.ndarray) -> np.ndarray:
-    """A patch's or element's corner indices without the ``-1`` of a triangle."""
-    return verts[:3] if verts[3] < 0 else verts
-
-
 def shoot_row(ctx: ShootContext, p: int) -> np.ndarray:
     """``(E,) float64``: the form factors ``F_pj`` from patch ``p`` to every element."""
     points, weights = shooter_points(ctx, p)
     normals = np.repeat(ctx.patch_normal[p][None], len(points), axis=0)
     rows = formfactor.shooter_rows(points, normals, ctx.vertices, ctx.elem_verts,
                                    method=ctx.method, resolution=ctx.resolution,
-                                   **ctx.options)
+                                   grid=ctx.grid, **ctx.options)
     row = rows[0] if len(points) == 1 else _average(rows, weights)
     offset = ctx.elem_centroid - ctx.patch_centroid[p]
     near = ((np.einsum("ij,ij->i", offset, offset) < (NEAR_FIELD * ctx.patch_radius[p]) ** 2)
@@ -286,7 +297,7 @@ def shoot_row(ctx: ShootContext, p: int) -> np.ndarray:
     return row
 
 
-def _strata(s: int) -> np.ndarray:
+def strata(s: int) -> np.ndarray:
     """``(s², 3) float64``: barycentric centroids of the ``s²`` congruent sub-triangles of a
     triangle cut ``s`` times along each edge (equal areas, so equal weights)."""
     i, j = np.meshgrid(np.arange(s), np.arange(s), indexing="ij")
@@ -320,12 +331,11 @@ def receiver_average(ctx: ShootContext, p: int, ids: np.ndarray) -> np.ndarray:
                                              shooter)[:, 0]
     if close.any():
         ev = ctx.elem_verts[ids[close]]
-        ev = np.where(ev < 0, ev[:, 2:3], ev)             # a triangle: second half empty
-        corners = ctx.vertices[ev]                        # (m, 4, 3)
-        halves = corners[:, [[0, 1, 2], [0, 2, 3]]]       # (m, 2, 3, 3)
+        corners = ctx.vertices[repeat_third(ev)]          # (m, 4, 3); a triangle's second
+        halves = corners[:, QUAD_HALVES]                  # (m, 2, 3, 3) half is empty
         area = 0.5 * np.linalg.norm(np.cross(halves[:, :, 1] - halves[:, :, 0],
                                              halves[:, :, 2] - halves[:, :, 0]), axis=2)
-        bary = _strata(STRATA)
+        bary = strata(STRATA)
         pts = np.einsum("kc,mhcx->mhkx", bary, halves).reshape(-1, 3)
         k = 2 * len(bary)
         f = formfactor.analytic_rows(pts, np.repeat(nrm[close], k, axis=0), ctx.vertices,
