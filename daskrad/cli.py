@@ -45,17 +45,25 @@ def _nonneg_float(text: str) -> float:
     return value
 
 
-def _area_method(text: str) -> str:
-    # the names live with the methods (daskrad.direct); imported only when the option is given
-    from daskrad.direct import AREA_METHODS
+def _default(name: str) -> str:
+    """``(default X)`` from :class:`~daskrad.settings.Settings`, where every default lives."""
+    from daskrad.settings import Settings
 
-    if text not in AREA_METHODS:
-        raise argparse.ArgumentTypeError(
-            f"unknown area-light method {text!r} (choose from {', '.join(sorted(AREA_METHODS))})")
-    return text
+    return f"(default {getattr(Settings, name)})"
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _choices(registry: str) -> str:
+    """The names of a registry, for ``--help`` only (the registries import numba kernels,
+    which a plain run must not wait for before it has parsed its options)."""
+    if registry == "methods":
+        from daskrad.formfactor import METHODS as names
+    else:
+        from daskrad.direct import AREA_METHODS as names
+    return ", ".join(sorted(names))
+
+
+def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
+    """The parser; ``help_choices`` lists the registries' names in the help (imports them)."""
     parser = _Parser(
         prog="daskrad",
         description="Progressive refinement radiosity with hemisphere-base form factors, on Dask.",
@@ -63,58 +71,75 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"daskrad {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     commands.required = True
+    methods = f"one of: {_choices('methods')} " if help_choices else ""
+    area_methods = f"one of: {_choices('area')} " if help_choices else ""
 
     info = commands.add_parser("info", help="load a scene and report its hierarchy and grid")
     info.add_argument("scene", help="OBJ (with MTL), PLY, STL, glTF or GLB file")
     info.add_argument("--config", help="TOML sidecar (default: SCENE with .toml suffix, if any)")
-    info.add_argument("--patch-size", type=_positive_float, help="max patch edge, scene units")
-    info.add_argument("--element-size", type=_positive_float, help="max element edge")
+    info.add_argument("--patch-size", type=_positive_float,
+                      help="max patch edge, scene units (default: from the scene's size)")
+    info.add_argument("--element-size", type=_positive_float,
+                      help="max element edge (default: from the scene's size)")
 
     run = commands.add_parser("run", help="solve and render a scene")
     run.add_argument("scene", help="OBJ (with MTL), PLY, STL, glTF or GLB file")
-    run.add_argument("-o", "--output", help="output image OUT.exr (default: SCENE stem + .exr)")
+    run.add_argument("-o", "--output", help="output image OUT.exr; OUT.png, OUT.json and the "
+                                            "store OUT.zarr go beside it (default: SCENE stem "
+                                            "+ .exr in the current directory)")
     run.add_argument("--config", help="TOML sidecar (default: SCENE with .toml suffix, if any)")
     where = run.add_mutually_exclusive_group()
     where.add_argument("--workers", type=_nonneg_int,
                        help="local worker processes (0: in-process; default: in-process below "
                             "~20k elements, else 2)")
     where.add_argument("--scheduler", help="address of an existing Dask scheduler, tcp://HOST:PORT")
-    run.add_argument("--method", help="form-factor method (default: hemisphere)")
-    run.add_argument("--resolution", type=_positive_int, help="item-buffer resolution R")
-    run.add_argument("--patch-size", type=_positive_float, help="max patch edge, scene units")
-    run.add_argument("--element-size", type=_positive_float, help="max element edge")
-    run.add_argument("--tolerance", type=_positive_float, help="relative unshot RMS to stop at")
-    run.add_argument("--max-iterations", type=_nonneg_int, help="shots at most")
-    run.add_argument("--batch", type=_positive_int, help="shooters per form-factor task (K)")
-    run.add_argument("--spp", type=_positive_int, help="samples per pixel")
+    run.add_argument("--method", help=f"form-factor method, {methods}{_default('method')}")
+    run.add_argument("--resolution", type=_positive_int,
+                     help=f"item-buffer side R (hemicube: top face side) {_default('resolution')}")
+    run.add_argument("--patch-size", type=_positive_float,
+                     help="max patch edge, scene units (default: from the scene's size)")
+    run.add_argument("--element-size", type=_positive_float,
+                     help="max element edge (default: from the scene's size)")
+    run.add_argument("--tolerance", type=_positive_float,
+                     help=f"relative unshot RMS to stop at {_default('tolerance')}")
+    run.add_argument("--max-iterations", type=_nonneg_int,
+                     help=f"shots at most {_default('max_iterations')}")
+    run.add_argument("--batch", type=_positive_int,
+                     help=f"shooters per form-factor task (K) {_default('batch')}")
+    run.add_argument("--spp", type=_positive_int, help=f"samples per pixel {_default('spp')}")
     run.add_argument("--width", type=_positive_int, help="image width (default: the camera's)")
-    run.add_argument("--height", type=_positive_int, help="image height")
+    run.add_argument("--height", type=_positive_int, help="image height (default: the camera's)")
     run.add_argument("--rdiff", type=_nonneg_float,
                      help="per-pixel pass threshold (eq. 9), in units of the scene's white "
-                          "level (default 0.1)")
+                          f"level {_default('rdiff')}")
     run.add_argument("--no-per-pixel", dest="per_pixel", action="store_const", const=False,
                      help="no per-pixel pass: Gouraud-interpolated direct light only")
     run.add_argument("--subdivide", type=_nonneg_float,
-                     help="relative spread of direct light splitting an element (0: off)")
+                     help="relative spread of direct light splitting an element (0: off) "
+                          f"{_default('subdivide')}")
     run.add_argument("--no-two-pass", dest="two_pass", action="store_const", const=False,
                      help="shoot area lights like any patch instead of gathering them")
     run.add_argument("--area-samples", type=_positive_int,
-                     help="shadow rays per area light: N x N (default 4)")
-    run.add_argument("--area-method", type=_area_method,
-                     help="area-light shadows at vertices: hemisphere (the paper's window on "
-                          "the hemisphere base; default) or rays (Lambert x shadow rays)")
-    run.add_argument("--mirror-depth", type=_nonneg_int, help="mirror bounces per pixel ray")
+                     help=f"shadow rays per area light: N x N {_default('area_samples')}")
+    run.add_argument("--area-method",
+                     help=f"area-light shadows at vertices, {area_methods}(hemisphere: the "
+                          "paper's window on the hemisphere base; rays: Lambert x shadow rays) "
+                          f"{_default('area_method')}")
+    run.add_argument("--mirror-depth", type=_nonneg_int,
+                     help=f"mirror bounces per pixel ray {_default('mirror_depth')}")
     run.add_argument("--dashboard", metavar="HOST:PORT",
-                     help="where a LocalCluster's dashboard listens (default 127.0.0.1:8787)")
+                     help=f"where a LocalCluster's dashboard listens {_default('dashboard')}")
     run.add_argument("--checkpoint-every", type=_positive_int,
-                     help="batches between checkpoints into OUT.zarr (default 8)")
+                     help=f"batches between checkpoints into OUT.zarr "
+                          f"{_default('checkpoint_every')}")
     run.add_argument("--resume", action="store_true", help="continue from OUT.zarr's checkpoint")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    args = build_parser(help_choices="-h" in argv or "--help" in argv).parse_args(argv)
     try:
         from daskrad import commands as subcommands
 
