@@ -141,14 +141,26 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = build_parser(help_choices="-h" in argv or "--help" in argv).parse_args(argv)
     try:
+        import numpy as np
+
         from daskrad import commands as subcommands
 
-        if args.command == "info":
-            print(subcommands.info_text(args))
-        elif args.command == "run":
-            subcommands.run_command(args)
+        # numbers beyond float64 are the user's to fix and each step checks its results are
+        # finite (one line, exit 2): numpy's overflow warnings would only add noise before it
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            if args.command == "info":
+                print(subcommands.info_text(args))
+            elif args.command == "run":
+                subcommands.run_command(args)
     except DaskradError as err:
         sys.stderr.write(f"daskrad: error: {err.line()}\n")
+        return 2
+    except (OSError, MemoryError) as err:
+        # disk full, a read-only or special file system, out of memory: the system's words,
+        # on one line, naming the file
+        where = f"{err.filename}: " if getattr(err, "filename", None) else ""
+        what = getattr(err, "strerror", None) or str(err) or type(err).__name__
+        sys.stderr.write(f"daskrad: error: {where}{what}\n")
         return 2
     except KeyboardInterrupt:
         sys.stderr.write("daskrad: interrupted; the last checkpoint is kept (use --resume)\n")

@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from daskrad import tolerances
-from daskrad.errors import OptionError
+from daskrad.errors import OptionError, SceneError
 from daskrad.kernels.arealight import area_irradiance
 from daskrad.kernels.direct import irradiance_points
 from daskrad.kernels.grid import Grid
@@ -429,6 +429,10 @@ def light(scene: Scene, mesh: Mesh, settings: Settings, executor=None) -> Direct
     """
     t = time.perf_counter()
     h = mesh.hierarchy
+    power = mesh.emission * h.elem_area[:, None]
+    if not np.isfinite(power).all():
+        raise SceneError("emitted power (π Ke × area) overflows a float64; scale the "
+                         "emission or the scene's units down", scene.path)
     gathered = bool(len(scene.point_lights) or len(scene.directional_lights)
                     or (settings.two_pass and scene.emitting.any()))
     if not gathered:
@@ -454,6 +458,9 @@ def light(scene: Scene, mesh: Mesh, settings: Settings, executor=None) -> Direct
         min_size=settings.min_element_size or element_size / MIN_SIZE_DIVISOR)
     if levels:
         ctx = with_hierarchy(ctx, h)
+    if not np.isfinite(H).all():
+        raise SceneError("direct irradiance overflows a float64 (a light's intensity or "
+                         "irradiance is too large for the scene's units)", scene.path)
     mesh = mesh.remeshed(scene, h)
     return DirectLight(mesh=mesh, irradiance=H,
                        reflected=mesh.reflectance * element_mean(h, H), tvertices=tv,

@@ -8,6 +8,11 @@ report at the end. The solution store (``OUT.zarr``) is written along the way by
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
+import json
+import os
+import shutil
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,24 +25,60 @@ from daskrad.scene.types import Scene
 from daskrad.settings import Settings
 from daskrad.solve import Solution
 
+#: What a daskrad store's root ``zarr.json`` holds in ``attributes.format`` (any version).
+STORE_FORMAT_PREFIX = "daskrad-solution/"
+
+
+def is_store(path: Path) -> bool:
+    """Whether ``path`` is a directory holding a daskrad solution store (a real directory,
+    not a link, whose root metadata names daskrad's format)."""
+    meta = path / "zarr.json"
+    if path.is_symlink() or not path.is_dir() or not meta.is_file():
+        return False
+    try:
+        attrs = json.loads(meta.read_text()).get("attributes", {})
+    except (OSError, ValueError, AttributeError):
+        return False
+    return str(attrs.get("format", "")).startswith(STORE_FORMAT_PREFIX)
+
 
 @dataclass(frozen=True)
 class Outputs:
     """The files of one run: ``exr`` (linear radiance), ``png`` (preview), ``json`` (report)
-    and ``store`` (the Zarr solution store), all beside each other with one stem."""
+    and ``store`` (the Zarr solution store), all beside each other with one stem.
+
+    A new run solves into :attr:`partial`, a hidden store beside ``store``, and swaps it in
+    only when it has finished (:meth:`publish`): a run that fails or is stopped leaves the
+    earlier results as they were. Earlier results are replaced, as other renderers do, and
+    the run says so; anything at these paths that daskrad did not make is refused, never
+    removed.
+    """
 
     exr: Path
 
     @classmethod
-    def of(cls, output: str | Path) -> Outputs:
-        """The outputs of ``-o OUTPUT``; :class:`OptionError` unless it is ``*.exr`` in an
-        existing directory."""
+    def of(cls, output: str | Path, resume: bool = False) -> Outputs:
+        """The outputs of ``-o OUTPUT``, checked before anything is loaded or written:
+        :class:`OptionError` unless it is ``*.exr`` in a writable directory and every path it
+        names is either free or a result of daskrad's."""
         output = Path(output)
         if output.suffix.lower() != ".exr":
             raise OptionError(f"the output must end in .exr, got {output.name}")
         if not output.parent.is_dir():
             raise OptionError(f"no such directory for the output: {output.parent}")
-        return cls(output)
+        if not os.access(output.parent, os.W_OK | os.X_OK):
+            raise OptionError("cannot write in this directory", output.parent)
+        outputs = cls(output)
+        for path in (outputs.exr, outputs.png, outputs.json):
+            if path.is_symlink() or (path.exists() and not path.is_file()):
+                raise OptionError("exists and is not a regular file; daskrad replaces only "
+                                  "its own results (choose another -o)", path)
+        for path in (outputs.store, outputs.partial):
+            if (path.exists() or path.is_symlink()) and not is_store(path):
+                raise OptionError("exists and is not a daskrad solution store; daskrad never "
+                                  "removes what it did not make (move it or choose another -o)",
+                                  path)
+        return outputs
 
     @property
     def png(self) -> Path:
@@ -50,6 +91,63 @@ class Outputs:
     @property
     def store(self) -> Path:
         return self.exr.with_suffix(".zarr")
+
+    @property
+    def partial(self) -> Path:
+        """Where a new run's store lives until it has finished."""
+        return self.exr.with_name(f".{self.exr.stem}.zarr.partial")
+
+    def earlier(self) -> list[Path]:
+        """The results of an earlier run that this one will replace."""
+        return [p for p in (self.exr, self.png, self.json, self.store) if p.exists()]
+
+    def working_store(self, resume: bool) -> Path:
+        """The store a run solves into: a new run's :attr:`partial`; a resumed run continues
+        an interrupted new run's partial store if there is one, else the finished store."""
+        if resume and not is_store(self.partial):
+            return self.store
+        return self.partial
+
+    def publish(self, working: Path) -> None:
+        """Swap the finished store ``working`` in for the earlier one (checked in :meth:`of`
+        to be daskrad's)."""
+        if working == self.store:
+            return
+        old = self.exr.with_name(f".{self.exr.stem}.zarr.old")
+        if old.exists() and is_store(old):
+            shutil.rmtree(old)
+        if self.store.exists():
+            if not is_store(self.store):       # appeared during the run: not ours to replace
+                raise OptionError("appeared during the run and is not a daskrad solution "
+                                  f"store; the solution is kept in {working}", self.store)
+            os.replace(self.store, old)
+        os.replace(working, self.store)
+        if old.exists():
+            shutil.rmtree(old)
+
+    def discard(self, working: Path) -> None:
+        """Remove the partial store of a run that failed (it made it; a stopped run keeps it
+        for ``--resume``)."""
+        if working == self.partial and is_store(working):
+            shutil.rmtree(working, ignore_errors=True)
+
+    @contextlib.contextmanager
+    def lock(self):
+        """Hold the lock of these outputs: a second run on the same ``-o`` is refused with one
+        line instead of both writing the same files."""
+        path = self.exr.with_name(f".{self.exr.stem}.lock")
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise OptionError("another daskrad run is writing these outputs; wait for "
+                                  "it or choose another -o", self.exr) from None
+            yield self
+            # the file stays (hidden, empty): unlinking it would let a run that opened it
+            # just before take a lock on a file a third run no longer sees
+        finally:
+            os.close(fd)
 
 
 def unlit_warning(scene: Scene, light: DirectLight, sol: Solution) -> str | None:
@@ -79,6 +177,8 @@ def report(scene: Scene, outputs: Outputs, settings: Settings, light: DirectLigh
     return {
         "scene": str(scene.path),
         "output": str(outputs.exr),
+        # the scene is worked in coordinates relative to this point (scene.origin)
+        "origin": scene.origin,
         "counts": {"polygons": len(scene.polygons), "patches": h.n_patches,
                    "elements": h.n_elements, "vertices": len(h.vertices),
                    "emitters": int(scene.emitting.sum()),
@@ -104,6 +204,11 @@ def report(scene: Scene, outputs: Outputs, settings: Settings, light: DirectLigh
 def warn(message: str) -> None:
     """One warning line on stderr."""
     print(f"daskrad: warning: {message}", file=sys.stderr)
+
+
+def note(message: str) -> None:
+    """One line of information on stderr."""
+    print(f"daskrad: {message}", file=sys.stderr)
 
 
 def not_converged(sol: Solution, settings: Settings) -> str | None:

@@ -71,3 +71,4 @@ def preprocess(scene: Scene, settings: Settings) -> Mesh:
     """Mesh ``scene`` with ``settings.patch_size`` and ``settings.element_size`` (scene units;
     ``None``: from the scene's size, :func:`daskrad.mesh.default_sizes`)."""
     return Mesh.of(scene, build_hierarchy(scene, settings.patch_size, settings.element_size))
+

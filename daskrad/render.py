@@ -23,6 +23,7 @@ import numpy as np
 
 from daskrad import direct, tolerances
 from daskrad.direct import DirectLight, Lights
+from daskrad.errors import SceneError
 from daskrad.kernels.grid import Grid, closest_hit
 from daskrad.kernels.shade import direct_at_hits
 from daskrad.mesh import vertex_average
@@ -442,6 +443,9 @@ def image(scene: Scene, light: DirectLight, sol: Solution, settings: Settings, e
     """Step 4: render ``sol`` seen by ``cam`` (default :func:`camera`), tile by tile on
     ``executor`` (``tile-…`` futures; default this process)."""
     t = time.perf_counter()
+    if not (np.isfinite(sol.radiosity).all() and np.isfinite(sol.unshot).all()):
+        raise SceneError("the radiosity solution is not finite (NaN or inf): emission or "
+                         "light intensities too large for a float64", scene.path)
     ctx = context(scene, light, sol, settings, cam or camera(scene, settings))
     parts = tiles(ctx.camera.width, ctx.camera.height)
     pixels = np.zeros((ctx.camera.height, ctx.camera.width, 3))
@@ -449,6 +453,8 @@ def image(scene: Scene, light: DirectLight, sol: Solution, settings: Settings, e
             else [render_tile(ctx, rows, cols) for rows, cols in parts])
     for (rows, cols), tile in zip(parts, done, strict=True):
         pixels[rows, cols] = tile
+    if not np.isfinite(pixels).all():
+        raise SceneError("the image is not finite (NaN or inf radiance)", scene.path)
     return Image(pixels=pixels, context=ctx,
                  ambient=ambient(light.mesh.hierarchy, light.mesh.reflectance, sol.unshot),
                  seconds=time.perf_counter() - t)

@@ -15,6 +15,7 @@ dashboard observe the solve (``on_batch``); they never change what it computes.
 from __future__ import annotations
 
 import math
+import sys
 import time
 from pathlib import Path
 from typing import NamedTuple
@@ -38,18 +39,24 @@ def run(scene_path: str | Path, out: str | Path, settings: Settings, progress: b
     store .zarr beside it. ``resume``: continue from the store's last checkpoint;
     ``executor``: run on this one (left open) instead of the settings' choice.
     Returns the run report (also written as JSON)."""
-    outputs = output.Outputs.of(out)
+    outputs = output.Outputs.of(out, resume)
     settings.validate()
+    with outputs.lock():
+        return _run(scene_path, outputs, settings, progress, config, resume, executor)
+
+
+def _run(scene_path, outputs, settings, progress, config, resume, executor) -> dict:
     seconds: dict[str, float] = {}
-    t = time.perf_counter()
-    scene = load_scene(scene_path, config)                                        # 1
+    t = start = time.perf_counter()
+    scene = load_scene(scene_path, config)                                         # 1
     if settings.workers is None:
         settings = settings.replace(workers=auto_workers(scene, settings))
-    store = Store(outputs.store, settings, resume=resume)
+    replaced = outputs.earlier()
+    store = Store(outputs.working_store(resume), settings, resume=resume)
     ex = executor or executor_for(settings, store)
     try:
         store.open()           # a new store, or the checkpoint to resume from
-        _announce(ex)
+        _announce(ex, settings)
         mesh = preprocess(scene, settings)                                        # 1
         seconds["preprocess"], t = time.perf_counter() - t, time.perf_counter()
         light = direct.light(scene, mesh, settings, ex)                           # 2
@@ -67,15 +74,23 @@ def run(scene_path: str | Path, out: str | Path, settings: Settings, progress: b
         image = render.image(scene, light, sol, settings, ex, camera)             # 4
         store.finish(image.context.vertex_radiance * math.pi)
         seconds["render"], t = time.perf_counter() - t, time.perf_counter()
+    except Exception:
+        if not resume:
+            outputs.discard(Path(store.path))
+        raise
     finally:
         ex.close()
     warnings = [w for w in (output.unlit_warning(scene, light, sol),
                             output.not_converged(sol, settings)) if w]
     for w in warnings:
         output.warn(w)
+    seconds["total"] = time.perf_counter() - start
     report = output.report(scene, outputs, settings, light, sol, image, workers=ex.workers,
                            seconds=seconds, warnings=warnings)
+    outputs.publish(Path(store.path))
     output.write(outputs, image, report)                                          # 5
+    if replaced and not resume:
+        output.note(f"replaced the earlier results {', '.join(p.name for p in replaced)}")
     return report
 
 
@@ -99,11 +114,13 @@ def solve_scene(scene, settings: Settings, executor=None, on_batch=None) -> Solv
     return Solved(light.mesh.hierarchy, light.mesh.reflectance, sol, light)
 
 
-def _announce(executor) -> None:
-    """Print the dashboard's address when there is one."""
+def _announce(executor, settings: Settings) -> None:
+    """Print the dashboard's address when there is one (and whether others can reach it)."""
     link = executor.dashboard_link
     if link:
-        import sys
-
         print(f"daskrad: dashboard {link} (progress: {link.rsplit('/', 1)[0]}/daskrad)",
               file=sys.stderr)
+        host = settings.dashboard.rpartition(":")[0].strip("[]")
+        if host not in ("127.0.0.1", "localhost", "::1") and not host.startswith("127."):
+            output.warn(f"the dashboard listens on {host or 'every interface'} "
+                        f"({settings.dashboard}), not only on this machine")

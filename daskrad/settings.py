@@ -67,9 +67,9 @@ class Settings:
     def validate(self) -> Settings:
         """``self`` if every value is in range and every name is registered, else
         :class:`~daskrad.errors.OptionError` naming the option (one line)."""
-        from daskrad.direct import AREA_METHODS
+        from daskrad.direct import check_area_method
         from daskrad.errors import OptionError
-        from daskrad.formfactor import METHODS
+        from daskrad.formfactor import get_method
 
         def bad(name: str, why: str):
             raise OptionError(f"--{name.replace('_', '-')} {why}, got {getattr(self, name)!r}")
@@ -87,10 +87,8 @@ class Settings:
                     or not (v >= 0 if zero else v > 0)):
                 bad(name, "must be a finite number " + (">= 0" if zero else "> 0"))
 
-        if self.method not in METHODS:
-            bad("method", f"must be one of {', '.join(sorted(METHODS))}")
-        if self.area_method not in AREA_METHODS:
-            bad("area_method", f"must be one of {', '.join(sorted(AREA_METHODS))}")
+        get_method(self.method)                 # the registries say what they hold
+        check_area_method(self.area_method)
         integer("resolution", 2, MAX_RESOLUTION)
         if self.edge_angle is not None:
             positive("edge_angle")
@@ -98,7 +96,7 @@ class Settings:
                 bad("edge_angle", "must be in (0, 90] degrees")
         for name in ("patch_size", "element_size", "min_element_size"):
             positive(name, optional=True)
-        positive("tolerance")
+        positive("tolerance", zero=True)       # 0: shoot max_iterations times
         integer("max_iterations", 0)
         integer("batch", 1, 1 << 16)
         integer("spp", 1, MAX_SPP)

@@ -26,6 +26,7 @@ from daskrad.distributed import worker
 from daskrad.distributed.dask_executor import DaskExecutor
 from daskrad.distributed.store import Store
 from daskrad.io import read_exr
+from daskrad.output import Outputs
 from daskrad.run import run, solve_scene
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
@@ -105,7 +106,8 @@ def test_same_bits_for_any_number_of_workers(reference, tmp_path, cluster_client
     out = tmp_path / f"{case}-{workers}.exr"
     settings = CASES[case].replace(workers=workers)
     if workers == 2:  # the session's 2-worker cluster; 1 and 4 start their own LocalCluster
-        store = Store(out.with_suffix(".zarr"), settings)
+        # the executor's store is the one the run solves into (a new run's partial store)
+        store = Store(Outputs(out).working_store(resume=False), settings)
         executor = DaskExecutor(cluster_client, store)
         report = run(CORNELL, out, settings, progress=False, executor=executor)
         assert executor.stats["tasks"] > 0
@@ -243,7 +245,7 @@ def test_lit_room_direct_pass_same_bits_in_process_and_on_two_workers(tmp_path, 
     settings = Settings(max_iterations=64, width=48, height=48, dashboard="127.0.0.1:0")
     a, b = tmp_path / "in-process.exr", tmp_path / "two-workers.exr"
     run(room, a, settings.replace(workers=0), progress=False)
-    store = Store(b.with_suffix(".zarr"), settings.replace(workers=2))
+    store = Store(Outputs(b).working_store(resume=False), settings.replace(workers=2))
     executor = DaskExecutor(cluster_client, store)
     direct_batches = []
     submit_direct = executor.direct

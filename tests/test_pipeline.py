@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import dataclasses
+import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,7 +17,7 @@ from daskrad.errors import OptionError
 from daskrad.formfactor import METHODS
 from daskrad.io import read_exr
 from daskrad.preprocess import preprocess
-from daskrad.run import run
+from daskrad.run import run, solve_scene
 from daskrad.scene import box_scene, load_scene
 from daskrad.settings import Settings
 from tests.conftest import REPO
@@ -108,22 +110,129 @@ def test_defaults_are_valid_and_stated_once():
     assert direct.AREA_SAMPLES == Settings().area_samples
 
 
+@pytest.fixture(scope="module")
+def earlier(tmp_path_factory):
+    """The results of a finished run (EXR, PNG, JSON, store) in a folder of their own."""
+    folder = tmp_path_factory.mktemp("earlier")
+    run(CORNELL, folder / "c.exr", SMALL, progress=False)
+    return folder
+
+
+def tree(folder: Path) -> dict:
+    """Every file below ``folder`` with its bytes."""
+    return {p.relative_to(folder): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file()}
+
+
+def cli_run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "daskrad", "run", str(CORNELL), "-q", *args],
+                          capture_output=True, text=True, timeout=300)
+
+
 @pytest.mark.parametrize("option", [["--method", "hemisphre"], ["--resolution", "100000"],
                                     ["--area-method", "window"],
                                     ["--width", "100000", "--height", "100000"],
                                     ["--dashboard", "notaport"]])
-def test_bad_option_fails_at_once_and_leaves_earlier_outputs(tmp_path, option):
+def test_bad_option_fails_at_once_and_leaves_earlier_outputs(earlier, tmp_path, option):
     # validated before the scene is loaded and before the old store is touched
-    out = tmp_path / "c.exr"
-    for suffix, data in ((".exr", b"old image"), (".json", b"{}")):
-        out.with_suffix(suffix).write_bytes(data)
-    (tmp_path / "c.zarr").mkdir()
-    (tmp_path / "c.zarr" / "keep").write_bytes(b"mine")
-    proc = subprocess.run([sys.executable, "-m", "daskrad", "run", str(CORNELL), "-o", str(out),
-                           "-q", *option], capture_output=True, text=True, timeout=120)
+    shutil.copytree(earlier, tmp_path / "out")
+    before = tree(tmp_path / "out")
+    proc = cli_run("-o", str(tmp_path / "out" / "c.exr"), *option)
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("daskrad: error:"), proc.stderr
-    assert option[0] in lines[0]
-    assert out.read_bytes() == b"old image"
-    assert (tmp_path / "c.zarr" / "keep").read_bytes() == b"mine"
+    assert option[1] in lines[0]          # the bad value is named
+    assert tree(tmp_path / "out") == before
+
+
+@pytest.mark.parametrize("kind", ["directory", "file", "symlink"])
+def test_a_foreign_store_path_is_refused_and_kept(tmp_path, kind):
+    # issue 13: `-o X.exr` with X.zarr not a daskrad store deleted it (the scene itself)
+    foreign = tmp_path / "c.zarr"
+    if kind == "directory":
+        foreign.mkdir()
+        (foreign / "scene.obj").write_text("v 0 0 0\n")
+    elif kind == "file":
+        foreign.write_text("mine")
+    else:
+        (tmp_path / "target").write_text("mine")
+        foreign.symlink_to(tmp_path / "target")
+    before = tree(tmp_path)
+    proc = cli_run("-o", str(tmp_path / "c.exr"))
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "c.zarr" in lines[0] and "not a daskrad solution store" in lines[0]
+    assert tree(tmp_path) == before and foreign.is_symlink() == (kind == "symlink")
+
+
+def test_a_new_run_replaces_earlier_results_and_says_so(earlier, tmp_path):
+    out = tmp_path / "out"
+    shutil.copytree(earlier, out)
+    proc = cli_run("-o", str(out / "c.exr"), "--width", "16", "--height", "16",
+                   "--patch-size", "150", "--element-size", "75", "--resolution", "64",
+                   "--tolerance", "1e-2", "--spp", "1")
+    assert proc.returncode == 0, proc.stderr
+    assert "replaced the earlier results c.exr, c.png, c.json, c.zarr" in proc.stderr
+    assert read_exr(out / "c.exr").shape == (16, 16, 3)
+    # the new store was swapped in whole; nothing partial is left beside it
+    assert sorted(p.name for p in out.iterdir() if p.name.startswith(".")) == [".c.lock"]
+
+
+def test_a_failed_run_keeps_the_earlier_results(earlier, tmp_path, monkeypatch):
+    # a failure after solving (here: the renderer) leaves the earlier results as they were
+    # and removes its own partial store
+    out = tmp_path / "out"
+    shutil.copytree(earlier, out)
+    before = tree(out)
+
+    def broken(*args, **kwargs):
+        raise MemoryError("no room for the image")
+
+    monkeypatch.setattr(render, "image", broken)
+    with pytest.raises(MemoryError):
+        run(CORNELL, out / "c.exr", SMALL, progress=False)
+    assert tree(out) == before
+
+
+def test_a_second_run_on_the_same_outputs_is_refused(tmp_path):
+    from daskrad.output import Outputs
+
+    outputs = Outputs.of(tmp_path / "c.exr")
+    with outputs.lock():
+        proc = cli_run("-o", str(tmp_path / "c.exr"))
+    assert proc.returncode == 2
+    assert "another daskrad run is writing these outputs" in proc.stderr
+    assert not (tmp_path / "c.exr").exists()
+
+
+def test_numbers_too_large_for_float64_are_one_line(tmp_path):
+    # issue 13: Ke 1e308 gave an all-NaN image and exit 0
+    body = (REPO / "scenes" / "cornell_box.obj").read_text()
+    mtl = (REPO / "scenes" / "cornell_box.mtl").read_text()
+    import re
+
+    (tmp_path / "s.obj").write_text(body.replace("cornell_box.mtl", "s.mtl"))
+    (tmp_path / "s.mtl").write_text(re.sub(r"Ke [0-9. ]+", "Ke 1e308 1e308 1e308", mtl))
+    proc = subprocess.run([sys.executable, "-m", "daskrad", "run", str(tmp_path / "s.obj"),
+                           "-o", str(tmp_path / "s.exr"), "-q"], capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "s.obj" in lines[0] and "float64" in lines[0], proc.stderr
+    assert not (tmp_path / "s.exr").exists() and not (tmp_path / "s.zarr").exists()
+    assert not list(tmp_path.glob(".s.zarr.partial"))
+
+
+def test_a_scene_far_from_the_origin_renders_as_at_the_origin(tmp_path):
+    # issue 13: a unit box moved to 1e12 came out 8 % off; in coordinates relative to its
+    # centre it is the same scene
+    def box(offset):
+        return box_scene(size=(1.0, 1.0, 1.0), diffuse=0.5,
+                         emission_per_face=[0, 0, 0, 1, 0, 0], origin=offset)
+
+    s = Settings(patch_size=0.5, element_size=0.25, resolution=32, tolerance=1e-3)
+    near = solve_scene(box(np.zeros(3)), s).solution.radiosity
+    far = solve_scene(box(np.full(3, 1e12)), s).solution.radiosity
+    np.testing.assert_allclose(far, near, rtol=1e-6, atol=0)
+    assert box(np.zeros(3)).origin.tolist() == [0.0, 0.0, 0.0]
+    assert box(np.full(3, 1e12)).origin.tolist() == [1e12, 1e12, 1e12]

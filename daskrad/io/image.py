@@ -6,6 +6,8 @@ interrupted run never leaves a half-written image that looks like a result.
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import os
 from pathlib import Path
 
@@ -14,6 +16,17 @@ import numpy as np
 
 def _atomic_target(path: Path) -> Path:
     return path.with_name(f".{path.name}.partial{path.suffix}")
+
+
+@contextlib.contextmanager
+def _removed_on_failure(tmp: Path):
+    """Remove the temporary file if the write fails (disk full): nothing half-written stays."""
+    try:
+        yield
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
 
 
 def write_exr(path: str | Path, rgb: np.ndarray) -> None:
@@ -30,8 +43,12 @@ def write_exr(path: str | Path, rgb: np.ndarray) -> None:
         raise ValueError(f"rgb must be (H, W, 3), got {pixels.shape}")
     tmp = _atomic_target(path)
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    OpenEXR.File(header, {"RGB": pixels}).write(str(tmp))
-    os.replace(tmp, path)
+    with _removed_on_failure(tmp):
+        try:
+            OpenEXR.File(header, {"RGB": pixels}).write(str(tmp))
+        except RuntimeError as err:       # OpenEXR reports a failed write (disk full) so
+            raise OSError(errno.EIO, f"cannot write the image: {err}", str(path)) from err
+        os.replace(tmp, path)
 
 
 def read_exr(path: str | Path) -> np.ndarray:
@@ -69,5 +86,6 @@ def write_png(path: str | Path, rgb: np.ndarray, exposure: float | None = None) 
 
     path = Path(path)
     tmp = _atomic_target(path)
-    Image.fromarray(tonemap(rgb, exposure), mode="RGB").save(tmp, format="PNG")
-    os.replace(tmp, path)
+    with _removed_on_failure(tmp):
+        Image.fromarray(tonemap(rgb, exposure), mode="RGB").save(tmp, format="PNG")
+        os.replace(tmp, path)

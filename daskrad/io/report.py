@@ -33,5 +33,9 @@ def write_report(path: str | Path, report: dict) -> None:
     """Write ``report`` as indented JSON, atomically."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.partial")
-    tmp.write_text(json.dumps(plain(report), indent=2) + "\n")
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(json.dumps(plain(report), indent=2) + "\n")
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)       # disk full: nothing half-written stays
+        raise

@@ -114,6 +114,10 @@ class Scene:
         ``None`` when the TOML gives none; the renderer then frames the bounding box.
     dropped_degenerate : int
         Zero-area faces dropped while loading (reported in a warning).
+    origin : (3,) float64
+        Where the file's coordinates had the scene's centre: ``vertices``, point lights and the
+        camera are relative to it (:func:`daskrad.scene.validate.centre_of`); 0 for a scene
+        near the world's origin.
     """
 
     path: str
@@ -125,6 +129,7 @@ class Scene:
     directional_lights: DirectionalLights = field(default_factory=DirectionalLights)
     camera: Camera | None = None
     dropped_degenerate: int = 0
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @property
     def bounds(self) -> np.ndarray:

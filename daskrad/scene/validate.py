@@ -5,7 +5,9 @@ Each refusal is a :class:`SceneError` naming the file and the problem; a user ca
 
 from __future__ import annotations
 
+import math
 import warnings
+from dataclasses import replace
 
 import numpy as np
 
@@ -42,6 +44,23 @@ def scale_of(vertices: np.ndarray, corners: np.ndarray) -> float:
         return 0.0
     v = vertices[np.unique(used)]
     return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+
+
+def centre_of(vertices: np.ndarray, corners: np.ndarray, diag: float) -> np.ndarray:
+    """``(3,) float64``: the origin of the coordinates a scene is worked in.
+
+    The bounding-box centre of the used vertices, rounded to a multiple of ``2^k >= diag``:
+    subtracting it is exact (Sterbenz), so a scene far from the world's origin (a unit box at
+    10¹²) is meshed, lit and solved exactly as the same scene at the origin, and a scene
+    within its own size of the world's origin is not moved at all (origin 0, its bits as
+    they were).
+    """
+    used = corners[corners >= 0]
+    if used.size == 0 or not diag > 0:
+        return np.zeros(3)
+    v = vertices[np.unique(used)]
+    step = 2.0 ** math.ceil(math.log2(diag))
+    return np.round((v.min(axis=0) + v.max(axis=0)) / 2.0 / step) * step
 
 
 def duplicated_polygons(vertices: np.ndarray, polygons: np.ndarray) -> np.ndarray:
@@ -235,6 +254,13 @@ def scene_from_arrays(
     diag = scale_of(v, poly)
     if not np.isfinite(diag**2):
         raise SceneError("coordinates are too large (the bounding box overflows float64)", path)
+    shift = centre_of(v, poly, diag)
+    if shift.any():   # every later step works relative to the scene's centre (issue 13)
+        v = v - shift
+        points = replace(points, position=np.asarray(points.position, np.float64) - shift)
+        if camera is not None:
+            camera = replace(camera, eye=np.asarray(camera.eye, np.float64) - shift,
+                             look_at=np.asarray(camera.look_at, np.float64) - shift)
     # a quad that is not planar and convex is split into two triangles, as a file's would be
     quad = poly[:, 3] >= 0
     if quad.any():
@@ -282,4 +308,5 @@ def scene_from_arrays(
         directional_lights=directional,
         camera=camera,
         dropped_degenerate=dropped,
+        origin=shift,
     )
