@@ -16,8 +16,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from daskrad.errors import OptionError
 from daskrad.kernels.grid import Grid, build_grid
-from daskrad.mesh import Hierarchy, build_hierarchy, hierarchy_triangles
+from daskrad.mesh import (
+    Hierarchy,
+    build_hierarchy,
+    default_sizes,
+    hierarchy_triangles,
+    polygon_areas,
+)
 from daskrad.scene.types import Scene
 from daskrad.settings import Settings
 
@@ -67,8 +74,31 @@ class Mesh:
         return self if h is self.hierarchy else Mesh.of(scene, h)
 
 
+#: Elements a run may make at most (before adaptive subdivision). Each element costs about
+#: 1 kB over the run (hierarchy, solution, dense form-factor rows of every shot in flight,
+#: the row cache, the store); 4 million is a few GiB, the most a 24 GiB machine with two
+#: workers solves, and far beyond the paper's 53,430.
+MAX_ELEMENTS = 4_000_000
+
+
+def estimated_elements(scene: Scene, settings: Settings) -> int:
+    """About how many elements ``settings.element_size`` makes of ``scene`` (total area over
+    the element's area; exact for squares that tile their polygons)."""
+    size = settings.element_size or default_sizes(scene)[1]
+    return int(math.ceil(float(polygon_areas(scene).sum()) / size**2))
+
+
 def preprocess(scene: Scene, settings: Settings) -> Mesh:
     """Mesh ``scene`` with ``settings.patch_size`` and ``settings.element_size`` (scene units;
-    ``None``: from the scene's size, :func:`daskrad.mesh.default_sizes`)."""
+    ``None``: from the scene's size, :func:`daskrad.mesh.default_sizes`).
+
+    Refuses (:class:`OptionError`, before any work) an element size that would make more than
+    :data:`MAX_ELEMENTS` elements.
+    """
+    n = estimated_elements(scene, settings)
+    if n > MAX_ELEMENTS:
+        raise OptionError(f"--element-size {settings.element_size or default_sizes(scene)[1]:.4g}"
+                          f" would make about {n:,} elements, more than the {MAX_ELEMENTS:,} a "
+                          "run may hold; choose a larger --element-size", scene.path)
     return Mesh.of(scene, build_hierarchy(scene, settings.patch_size, settings.element_size))
 

@@ -51,14 +51,14 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor) -> d
     scene = load_scene(scene_path, config)                                         # 1
     if settings.workers is None:
         settings = settings.replace(workers=auto_workers(scene, settings))
+    mesh = preprocess(scene, settings)                                            # 1
+    seconds["preprocess"], t = time.perf_counter() - t, time.perf_counter()
     replaced = outputs.earlier()
     store = Store(outputs.working_store(resume), settings, resume=resume)
     ex = executor or executor_for(settings, store)
     try:
         store.open()           # a new store, or the checkpoint to resume from
         _announce(ex, settings)
-        mesh = preprocess(scene, settings)                                        # 1
-        seconds["preprocess"], t = time.perf_counter() - t, time.perf_counter()
         light = direct.light(scene, mesh, settings, ex)                           # 2
         seconds["direct"], t = time.perf_counter() - t, time.perf_counter()
         mesh = light.mesh

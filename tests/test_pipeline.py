@@ -132,7 +132,9 @@ def cli_run(*args: str) -> subprocess.CompletedProcess:
 @pytest.mark.parametrize("option", [["--method", "hemisphre"], ["--resolution", "100000"],
                                     ["--area-method", "window"],
                                     ["--width", "100000", "--height", "100000"],
-                                    ["--dashboard", "notaport"]])
+                                    ["--dashboard", "notaport"],
+                                    ["--scheduler", "notanaddress"],
+                                    ["--element-size", "0.01"]])
 def test_bad_option_fails_at_once_and_leaves_earlier_outputs(earlier, tmp_path, option):
     # validated before the scene is loaded and before the old store is touched
     shutil.copytree(earlier, tmp_path / "out")
@@ -236,3 +238,43 @@ def test_a_scene_far_from_the_origin_renders_as_at_the_origin(tmp_path):
     np.testing.assert_allclose(far, near, rtol=1e-6, atol=0)
     assert box(np.zeros(3)).origin.tolist() == [0.0, 0.0, 0.0]
     assert box(np.full(3, 1e12)).origin.tolist() == [1e12, 1e12, 1e12]
+
+
+def test_an_output_on_a_special_file_system_is_one_line(tmp_path):
+    proc = cli_run("-o", "/proc/out.exr")
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "/proc" in lines[0], proc.stderr
+
+
+def test_a_full_disk_is_one_line_and_leaves_nothing_half_written(earlier, tmp_path, capsys,
+                                                                 monkeypatch):
+    import errno
+
+    import OpenEXR
+
+    from daskrad import cli
+
+    out = tmp_path / "out"
+    shutil.copytree(earlier, out)
+    before = tree(out)
+
+    class Full:
+        def __init__(self, *args):
+            pass
+
+        def write(self, path):
+            Path(path).write_bytes(b"half")          # what a full disk leaves
+            raise OSError(errno.ENOSPC, "No space left on device", path)
+
+    monkeypatch.setattr(OpenEXR, "File", Full)
+    code = cli.main(["run", str(CORNELL), "-o", str(out / "c.exr"), "-q", "--width", "24",
+                     "--height", "24", "--patch-size", "150", "--element-size", "75",
+                     "--resolution", "64", "--tolerance", "1e-2", "--spp", "1"])
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "No space left on device" in err[0]
+    after = tree(out)
+    # the earlier image is untouched and no temporary image is left; the store was swapped in
+    assert after[Path("c.exr")] == before[Path("c.exr")]
+    assert not [p for p in after if ".partial" in str(p)]

@@ -30,11 +30,9 @@ AUTO_CLUSTER_ELEMENTS = 20_000
 
 def auto_workers(scene, settings) -> int:
     """``--workers`` not given: 2 local workers, or 0 for a small scene (DESIGN §4)."""
-    from daskrad.mesh import default_sizes, polygon_areas
+    from daskrad.preprocess import estimated_elements
 
-    size = settings.element_size or default_sizes(scene)[1]
-    estimate = float(polygon_areas(scene).sum()) / size**2
-    return 0 if estimate < AUTO_CLUSTER_ELEMENTS else 2
+    return 0 if estimated_elements(scene, settings) < AUTO_CLUSTER_ELEMENTS else 2
 
 
 def executor_for(settings, store=None):
