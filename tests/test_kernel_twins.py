@@ -33,7 +33,6 @@ from daskrad import tolerances
 from daskrad.kernels.geometry import element_planes, lex_less, scene_diagonal
 from daskrad.kernels.hemicube import delta_form_factors, hemicube_shots, side_rows
 from daskrad.kernels.hemisphere import (
-    DEPTH_TIE,
     depth_coefficients,
     disc_pixels,
     edge_capacity,
@@ -49,6 +48,7 @@ from tests.helpers import closed_box, grid, merge
 
 EDGE = math.radians(tolerances.EDGE_ANGLE_DEG)
 HORIZON = tolerances.HORIZON_EPS
+DEPTH_TIE = tolerances.DEPTH_TIE
 
 
 # --- configurations -------------------------------------------------------------------------

@@ -64,6 +64,7 @@ from daskrad.kernels.hemisphere import (
     split_table,
 )
 from daskrad.kernels.lambert import lambert_polygon
+from daskrad.kernels.tolerances import WINDOW_MIN
 
 
 @jit
@@ -320,7 +321,7 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
     y0 = max(y0, -1.0)
     x1 = min(x1, 1.0)
     y1 = min(y1, 1.0)
-    if not (x1 - x0 > 1e-12 and y1 - y0 > 1e-12):
+    if not (x1 - x0 > WINDOW_MIN and y1 - y0 > WINDOW_MIN):
         return _centroid_ray(grid, ex, ey, ez, corners, count, off), n_c
     inv_px = r / (x1 - x0)
     inv_py = r / (y1 - y0)
