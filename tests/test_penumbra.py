@@ -15,7 +15,7 @@ import pytest
 from daskrad import formfactor, shoot
 from daskrad.mesh import build_hierarchy
 from daskrad.scene import box_scene
-from tests import stress_cases as sc
+from daskrad.testing import stress as sc
 
 
 def _context(scene, patch=0.25, element=0.125, method="hemisphere", resolution=64):
