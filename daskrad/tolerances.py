@@ -64,6 +64,13 @@ EDGE_SAGITTA_PX = 0.25
 #: ``HORIZON_EPS``: the form factors tell two planes apart beyond it.
 COPLANAR = 1e-9
 
+#: Cell of the plane buckets in which :func:`daskrad.scene.overlap.coplanar_overlaps` looks for
+#: such pairs: unit-normal components and offsets (over the scene diagonal). Mostly a
+#: performance filter, the exact test decides; but two faces coplanar within ``COPLANAR`` with
+#: normals more than ``COPLANAR_CELL / 5`` apart (only faces smaller than
+#: ``COPLANAR · diag / (COPLANAR_CELL / 5)`` can be) are not compared.
+COPLANAR_CELL = 1e-3
+
 #: The anti-aliased hemisphere method (``formfactor.hemisphere_rows``) takes an element's
 #: visibility from its pixel counts (``won / covered``) only when its exact projected area on
 #: the base disc (Lambert's ``L · n_disc``, in pixels) is at least this; a smaller element takes

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad import direct
+from daskrad import direct, tolerances
 from daskrad.kernels.grid import build_grid
 from daskrad.mesh import build_hierarchy, hierarchy_triangles
 from daskrad.mesh.refine import refine, resolve_tvertices
@@ -20,7 +20,7 @@ def _expected_floor_elements(x0, z0, size):
     corners = np.array([[x0, 0, z0], [x0 + size, 0, z0], [x0 + size, 0, z0 + size],
                         [x0, 0, z0 + size]])
     dark = in_shadow(corners)
-    if dark.all() or not dark.any() or size <= MIN_SIZE * (1 + 1e-9):
+    if dark.all() or not dark.any() or size <= MIN_SIZE * (1 + tolerances.SPLIT_SIZE_RTOL):
         return 1
     half = size / 2
     return sum(_expected_floor_elements(x0 + i * half, z0 + j * half, half)
