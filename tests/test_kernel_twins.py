@@ -12,14 +12,25 @@ configurations and edge cases:
   one documented addition, the :data:`DEPTH_TIE` margin of its depth test;
 - the hemicube (``kernels/hemicube.py``), whose per-face scan conversion is ``fill_polygon``'s
   body, against a composed shot: the same face frames and Sutherland-Hodgman clips (written here
-  from their definition, since the hemicube's own are private), then ``fill_polygon`` itself;
+  from their definition, since the hemicube's own are private), then ``fill_polygon`` itself.
+  The composed shot clips every element against every face, without the hemicube's shortcuts
+  (bounding-sphere cull, per-face outcodes), so it also checks that those skip nothing;
 - Lambert's batch kernel (:func:`lambert_shots`, :func:`lambert_masked`), whose clip and contour
   sum are written out, against the single-polygon :func:`lambert_polygon`.
 
 The scanline method has no twin: it calls ``project_element`` itself and its span sweep has no
-counterpart. The item-buffer comparison sees the buffer through the public ``won`` and
-``covered`` counts per element (``hemisphere_visibility``), at resolutions high enough that a
-moved outline or a changed depth decision would change a count somewhere.
+counterpart.
+
+What the comparison sees: the public outputs, bit for bit. The item buffer shows through the
+``won`` and ``covered`` counts per element and the ``visible`` fraction (continuous in the
+clipped corners, so it sees the clip's bits); the hemicube through its sums of delta form
+factors. A projected outline moved by an ulp changes a count only where it passes exactly
+through a pixel centre, which the closed box seen from its centre at odd resolutions provokes
+(its grid lines project onto the axes). Changing the written-out bodies was caught this way
+(each of: the clip's canonical endpoint, the span rounding at exact pixel centres, the
+centroid's summation order, the split count, the depth tie, Lambert's contour term order),
+while ``x / r`` → ``x * (1 / r)`` in the projection went unseen: no output in these cases
+depends on those ulps.
 """
 
 from __future__ import annotations
