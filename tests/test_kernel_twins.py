@@ -26,11 +26,11 @@ What the comparison sees: the public outputs, bit for bit. The item buffer shows
 clipped corners, so it sees the clip's bits); the hemicube through its sums of delta form
 factors. A projected outline moved by an ulp changes a count only where it passes exactly
 through a pixel centre, which the closed box seen from its centre at odd resolutions provokes
-(its grid lines project onto the axes). Changing the written-out bodies was caught this way
-(each of: the clip's canonical endpoint, the span rounding at exact pixel centres, the
-centroid's summation order, the split count, the depth tie, Lambert's contour term order),
-while ``x / r`` → ``x * (1 / r)`` in the projection went unseen: no output in these cases
-depends on those ulps.
+(its grid lines project onto the axes). Deliberate changes were caught this way, each alone:
+in the written-out bodies the clip's canonical endpoint, the span rounding at exact pixel
+centres, the centroid's summation order and Lambert's contour term order; in the composed
+form the split count and the depth tie. ``x / r`` → ``x * (1 / r)`` in a projection went
+unseen: no output in these cases depends on those ulps.
 """
 
 from __future__ import annotations
