@@ -36,7 +36,7 @@ from PIL import Image, ImageDraw
 from daskrad import formfactor as ff
 from daskrad.mesh import build_hierarchy
 from daskrad.scene import load_scene
-from tests.helpers import grid, merge, square_above
+from daskrad.testing import grid, merge, square_above
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).parent / "results"

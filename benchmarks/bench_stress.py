@@ -3,7 +3,7 @@
 ``python -m benchmarks stress`` (or ``python -m benchmarks.bench_stress [--quick]``) prints one
 table — case, quantity, outcome, measured error, limit — and writes
 ``benchmarks/results/stress.json``. The cases are those of tests/test_stress.py
-(tests/stress_cases.py); ``--quick`` skips the 10,000-shot, 50,000-element drift run.
+(daskrad/testing/stress.py); ``--quick`` skips the 10,000-shot, 50,000-element drift run.
 
 Outcomes: ``pass`` (within the limit), ``FAIL`` (over it: the matching test fails too),
 ``refused`` (the input was refused with a clear message), ``error`` (an exception: a
@@ -28,7 +28,7 @@ RESULTS = Path(__file__).parent / "results"
 
 def _cases(quick: bool):
     """``(name, thunk)`` pairs; each thunk returns a list of Results."""
-    from tests import stress_cases as sc
+    from daskrad.testing import stress as sc
 
     tmp = Path(tempfile.mkdtemp(prefix="daskrad-stress-"))
     out = []

@@ -3,7 +3,23 @@
 Tolerances that depend on geometry are *relative to the scene's size* (the diagonal of its
 bounding box), never fixed epsilons, so a scene in millimetres and the same scene in
 kilometres behave the same (issue 7).
+
+The kernels' own tolerances are defined in :mod:`daskrad.kernels.tolerances` (kernels import
+nothing of the project outside ``daskrad.kernels``) and re-exported here, so
+``from daskrad import tolerances`` gives every one of them.
 """
+
+from daskrad.kernels.tolerances import (  # noqa: F401  (re-exported)
+    COORD_ROUND,
+    DEPTH_TIE,
+    GRID_MARGIN,
+    GRID_PAD,
+    LEX_TIE,
+    RAY_EPS,
+    SHADOW_SHORTEN,
+    SPHERE_PAD,
+    WINDOW_MIN,
+)
 
 #: A face whose area is below ``DEGENERATE_AREA * diag**2`` is dropped as degenerate.
 DEGENERATE_AREA = 1e-14
@@ -15,11 +31,17 @@ PLANAR_QUAD = 1e-9
 #: Shadow and secondary rays start ``RAY_OFFSET * diag`` off the surface along its normal.
 RAY_OFFSET = 1e-7
 
-#: Rays hit triangles within ``RAY_EPS * diag`` of an edge (watertightness across shared edges).
-RAY_EPS = 1e-12
-
 #: Relative tolerance with which area sums are checked at every level of the hierarchy.
 AREA_SUM_RTOL = 1e-9
+
+#: Adaptive refinement (:mod:`daskrad.mesh.refine`) splits an element only while its longest
+#: edge exceeds the smallest element size by more than this, relative: an edge equal to it up to
+#: round-off is not split again.
+SPLIT_SIZE_RTOL = 1e-9
+
+#: The camera's ``up`` is refused as parallel to the view direction when the sine of the angle
+#: between them is at most this (:func:`daskrad.scene.config.read_config`).
+CAMERA_UP_SINE = 1e-9
 
 #: Default threshold angle (degrees) a polyline piece of a projected edge may subtend (eq. 4).
 EDGE_ANGLE_DEG = 1.0
@@ -42,6 +64,13 @@ EDGE_SAGITTA_PX = 0.25
 #: ``HORIZON_EPS``: the form factors tell two planes apart beyond it.
 COPLANAR = 1e-9
 
+#: Cell of the plane buckets in which :func:`daskrad.scene.overlap.coplanar_overlaps` looks for
+#: such pairs: unit-normal components and offsets (over the scene diagonal). Mostly a
+#: performance filter, the exact test decides; but two faces coplanar within ``COPLANAR`` with
+#: normals more than ``COPLANAR_CELL / 5`` apart (only faces smaller than
+#: ``COPLANAR · diag / (COPLANAR_CELL / 5)`` can be) are not compared.
+COPLANAR_CELL = 1e-3
+
 #: The anti-aliased hemisphere method (``formfactor.hemisphere_rows``) takes an element's
 #: visibility from its pixel counts (``won / covered``) only when its exact projected area on
 #: the base disc (Lambert's ``L · n_disc``, in pixels) is at least this; a smaller element takes
@@ -50,9 +79,3 @@ COPLANAR = 1e-9
 #: a sliver) covers centres that are chord artefacts shared with its coplanar neighbours, where
 #: the item buffer's tie-break (lower index) made it lose whole pixels (furnace error 9.4 %).
 SUBPIXEL_AREA_PX = 1.0
-
-#: Two coordinates closer than this, relative to the points' magnitudes, tie when the raster
-#: orders an edge's endpoints (:func:`daskrad.kernels.geometry.lex_less`: round-off must not
-#: decide which end the polyline starts from). Defined beside the kernel, which imports
-#: nothing of the project.
-from daskrad.kernels.geometry import LEX_TIE  # noqa: E402, F401

@@ -7,8 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-REPO = Path(__file__).resolve().parent.parent
-SCENES = REPO / "scenes"
+from tests.helpers import SCENES
 
 
 @pytest.fixture

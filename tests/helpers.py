@@ -1,72 +1,132 @@
-"""Helpers shared by several tests and ``benchmarks/bench_methods.py``: geometry builders
-(plain NumPy, no randomness of their own: a caller's ``rng`` is drawn from in a fixed order) and
-the render context of a solved scene.
+"""Everything the test modules share, in this one module (test modules import nothing from
+each other): paths, exact answers, scenes with known shadows, bit-for-bit run comparison and
+the render context of a solved scene. The geometry builders are :mod:`daskrad.testing`'s
+(shared with the benchmarks), re-exported here.
 """
 
 from __future__ import annotations
 
+import math
+from pathlib import Path
+
 import numpy as np
 
 from daskrad import render
+from daskrad.io import read_exr
+from daskrad.kernels.hemisphere import disc_pixels
 from daskrad.run import solve_scene
+from daskrad.scene import scene_from_arrays
 from daskrad.settings import Settings
+from daskrad.testing import closed_box, grid, merge, square_above, triangle_soup
+
+__all__ = [
+    "CORNELL", "ORIGIN", "REPO", "SCENES", "UP", "assert_same_run", "blocker_scene",
+    "closed_box", "corner_rectangle", "grid", "in_shadow", "merge", "projected_perimeter_px",
+    "raster_bound", "render_context", "square_above", "store_arrays", "triangle_soup",
+]
 
 
-def grid(origin, u, v, n=1):
-    """An n × n grid of quads spanning ``origin + s u + t v``, lit side ``u × v``.
+REPO = Path(__file__).resolve().parent.parent
+#: The bundled scenes (also the ``scenes_dir`` fixture of conftest.py).
+SCENES = REPO / "scenes"
+CORNELL = SCENES / "cornell_box.obj"
 
-    Returns ``vertices (V, 3)`` and ``elem_verts (n*n, 4) int32``. Grid coordinates come from
-    one ``linspace``, so grids meeting along an edge share bit-identical vertices.
-    """
-    s = np.linspace(0.0, 1.0, n + 1)
-    su, sv = np.meshgrid(s, s, indexing="ij")
-    verts = (np.asarray(origin, float) + su[..., None] * np.asarray(u, float)
-             + sv[..., None] * np.asarray(v, float)).reshape(-1, 3)
-    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-    a = (i * (n + 1) + j).ravel()
-    elems = np.stack([a, a + n + 1, a + n + 2, a + 1], axis=-1).astype(np.int32)
-    return verts, elems
+#: The shooter of the single-point form-factor tests: the origin, facing +z.
+ORIGIN = np.zeros(3)
+UP = np.array([0.0, 0.0, 1.0])
 
 
-def merge(*parts):
-    """One ``(vertices, elem_verts)`` of several, indices shifted (``-1`` kept)."""
-    verts, elems, offset = [], [], 0
-    for v, e in parts:
-        verts.append(v)
-        elems.append(np.where(e >= 0, e + offset, -1))
-        offset += len(v)
-    return np.concatenate(verts), np.concatenate(elems).astype(np.int32)
+# --- exact answers --------------------------------------------------------------------------
+
+def corner_rectangle(a, b, c):
+    """Differential area to a parallel a × b rectangle with one corner straight above at c."""
+    ra, rb = a / c, b / c
+    sa, sb = math.sqrt(1 + ra * ra), math.sqrt(1 + rb * rb)
+    return (ra / sa * math.atan(rb / sa) + rb / sb * math.atan(ra / sb)) / (2 * math.pi)
 
 
-def closed_box(n, size=1.0):
-    """The cube [0, size]³, each face an n × n grid, lit sides inwards."""
-    x, y, z = np.eye(3) * size
-    o = np.zeros(3)
-    return merge(
-        grid(o, x, y, n), grid(z, y, x, n),          # floor (+z), ceiling (-z)
-        grid(o, y, z, n), grid(x, z, y, n),          # x = 0 (+x), x = size (-x)
-        grid(o, z, x, n), grid(y, x, z, n),          # y = 0 (+y), y = size (-y)
-    )
+def projected_perimeter_px(corners, resolution, point=ORIGIN, normal=UP):
+    """Length in pixels of the projected outline of the part of a polygon above the horizon."""
+    t1 = np.cross(normal, [1.0, 0, 0] if abs(normal[0]) < 0.9 else [0, 1.0, 0])
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(normal, t1)
+    s = np.linspace(0.0, 1.0, 4001)[:, None]
+    total = 0.0
+    for a, b in zip(corners, np.roll(corners, -1, axis=0), strict=True):
+        w = a + s * (b - a) - point
+        z = w @ normal
+        keep = z > 0
+        d = w[keep] / np.linalg.norm(w[keep], axis=1)[:, None]
+        xy = np.stack([d @ t1, d @ t2], -1)
+        total += np.linalg.norm(np.diff(xy, axis=0), axis=1).sum()
+    # the horizon cut (if any) lies on the rim: bounded by the rim term of the error model
+    return total * resolution / 2
 
 
-def square_above(x0, x1, y0, y1, height, n=1):
-    """A rectangle in the plane z = height facing down (towards a point below)."""
-    return grid([x0, y0, height], [0, y1 - y0, 0], [x1 - x0, 0, 0], n)
+def raster_bound(f_exact, perimeter_px, resolution):
+    """The item buffer's error model (tests/test_formfactor.py's module docstring): a pixel
+    centre on each side of the outline within half a pixel of it may flip, plus the rim."""
+    n_disc = disc_pixels(resolution)[2]
+    rim = abs(math.pi * resolution**2 / 4 - n_disc)
+    return (perimeter_px / 4 + 4 + f_exact * rim) / n_disc
 
 
-def triangle_soup(rng, n):
-    """``n`` random triangles around normal centres, and 3 random shooters.
+# --- a shadow with an exact outline ---------------------------------------------------------
 
-    Returns ``vertices (3n, 3)``, ``elem_verts (n, 4) int32`` (``-1`` in column 3),
-    ``points (3, 3)`` and ``normals (3, 3)`` (not unit), drawn from ``rng`` in that order.
-    """
-    centres = rng.normal(size=(n, 3)) * 2
-    tris = centres[:, None, :] + rng.normal(size=(n, 3, 3)) * 0.7
-    verts = tris.reshape(-1, 3)
-    elems = np.column_stack([np.arange(3 * n).reshape(n, 3), -np.ones(n)]).astype(np.int32)
-    points = rng.normal(size=(3, 3))
-    normals = rng.normal(size=(3, 3))
-    return verts, elems, points, normals
+def blocker_scene(direction=(0.3, -1.0, 0.0)):
+    """A 4 × 4 floor (y = 0, facing up), a 1 × 1 blocker at y = 1 facing down, a parallel
+    light of irradiance 2 travelling along ``direction``."""
+    v = np.array([[-2, 0, -2], [-2, 0, 2], [2, 0, 2], [2, 0, -2],
+                  [0.13, 1, 0.21], [1.13, 1, 0.21], [1.13, 1, 1.21], [0.13, 1, 1.21]])
+    d = np.asarray(direction, float)
+    return scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7]]), [0, 0],
+                             diffuse=[[0.5] * 3], emission=[[0, 0, 0]],
+                             directional_lights=(d[None] / np.linalg.norm(d), [[2.0] * 3]))
+
+
+def in_shadow(points, direction=(0.3, -1.0, 0.0)):
+    """Exact for :func:`blocker_scene`: the blocker square shifted along the light to the floor;
+    ``points (n, 3)`` → ``(n,) bool``."""
+    d = np.asarray(direction, float)
+    shift = d[[0, 2]] / -d[1]  # where a ray through y = 1 meets y = 0
+    x = points[:, 0] - shift[0]
+    z = points[:, 2] - shift[1]
+    return (x > 0.13) & (x < 1.13) & (z > 0.21) & (z < 1.21)
+
+
+# --- runs that must agree bit for bit -------------------------------------------------------
+
+def store_arrays(path: Path) -> dict[str, np.ndarray]:
+    """Every array of a solution store except the worker task contexts (a cache of what the
+    client holds) and the older checkpoint slot; the active slot is named ``checkpoint/last``."""
+    import zarr
+
+    root = zarr.open_group(str(path), mode="r")
+    active = str(root.attrs["checkpoint"])
+    out = {}
+
+    def walk(group, prefix):
+        for name, member in group.members():
+            full = prefix + name
+            if full == "context" or (prefix == "checkpoint/" and name != active):
+                continue
+            if isinstance(member, zarr.Array):
+                out[full.replace(f"checkpoint/{active}/", "checkpoint/last/")] = member[...]
+            else:
+                walk(member, full + "/")
+
+    walk(root, "")
+    return out
+
+
+def assert_same_run(a: Path, b: Path) -> None:
+    """Bit-identical EXR and store arrays of two runs written to ``a`` and ``b`` (.exr)."""
+    np.testing.assert_array_equal(read_exr(a), read_exr(b))
+    sa, sb = store_arrays(a.with_suffix(".zarr")), store_arrays(b.with_suffix(".zarr"))
+    assert sorted(sa) == sorted(sb)
+    for name in sa:
+        assert sa[name].dtype == sb[name].dtype, name
+        np.testing.assert_array_equal(sa[name], sb[name], err_msg=name)
 
 
 def render_context(scene, **opts):

@@ -12,9 +12,10 @@ from daskrad import cli, direct, tolerances
 from daskrad.errors import OptionError
 from daskrad.formfactor import analytic_rows
 from daskrad.kernels.arealight import area_irradiance_stats
-from daskrad.kernels.direct import irradiance_points, lambert_polygon
+from daskrad.kernels.direct import irradiance_points
 from daskrad.kernels.geometry import orthonormal_basis
 from daskrad.kernels.grid import build_grid
+from daskrad.kernels.lambert import lambert_polygon
 from daskrad.mesh import build_hierarchy, hierarchy_triangles
 from daskrad.scene import box_scene, scene_from_arrays
 

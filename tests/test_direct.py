@@ -15,6 +15,7 @@ from daskrad.mesh import build_hierarchy, hierarchy_triangles
 from daskrad.run import solve_scene
 from daskrad.scene import box_scene, scene_from_arrays
 from daskrad.settings import Settings
+from tests.helpers import blocker_scene, in_shadow
 
 SQUARE = np.array([[-1.0, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]])
 
@@ -49,35 +50,15 @@ def test_point_light_below_a_one_sided_plane_gives_nothing():
     assert np.all(direct.compute(ctx, 0, len(h.vertices)) == 0.0)
 
 
-def _blocker_scene(direction=(0.3, -1.0, 0.0)):
-    """A 4 × 4 floor (y = 0, facing up), a 1 × 1 blocker at y = 1 facing down, a parallel
-    light of irradiance 2 travelling along ``direction``."""
-    v = np.array([[-2, 0, -2], [-2, 0, 2], [2, 0, 2], [2, 0, -2],
-                  [0.13, 1, 0.21], [1.13, 1, 0.21], [1.13, 1, 1.21], [0.13, 1, 1.21]])
-    d = np.asarray(direction, float)
-    return scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7]]), [0, 0],
-                             diffuse=[[0.5] * 3], emission=[[0, 0, 0]],
-                             directional_lights=(d[None] / np.linalg.norm(d), [[2.0] * 3]))
-
-
-def _in_shadow(points, direction=(0.3, -1.0, 0.0)):
-    """Exact: the blocker square shifted along the light to the floor, ``(n,) bool``."""
-    d = np.asarray(direction, float)
-    shift = d[[0, 2]] / -d[1]  # where a ray through y = 1 meets y = 0
-    x = points[:, 0] - shift[0]
-    z = points[:, 2] - shift[1]
-    return (x > 0.13) & (x < 1.13) & (z > 0.21) & (z < 1.21)
-
-
 def test_directional_light_shadow_is_exact_at_every_vertex(rng):
-    scene = _blocker_scene()
+    scene = blocker_scene()
     h, ctx = _context(scene, 4.0, 0.1)
     H = direct.compute(ctx, 0, len(h.vertices))
     floor = direct.vertex_normals(h)[:, 1] > 0.5
     # cos θ = 1/|d| for the floor: H = 2 / sqrt(1.09) when lit, 0 in the shadow (no vertex lies
     # on the shadow's outline: its edges are at x = 0.43, 1.43, z = 0.21, 1.21, off the 0.1 grid)
     lit = 2.0 / math.sqrt(1.09)
-    expected = np.where(_in_shadow(h.vertices[floor]), 0.0, lit)
+    expected = np.where(in_shadow(h.vertices[floor]), 0.0, lit)
     np.testing.assert_allclose(H[floor, 0], expected, rtol=1e-12, atol=1e-12)
     # the shadow's area: the lit power on the floor is E cosθ (16 − 1); with elements of 0.1
     # only the ring of elements cut by the outline (perimeter 4 × width 0.1) is uncertain

@@ -25,14 +25,11 @@ import pytest
 from daskrad.distributed import worker
 from daskrad.distributed.dask_executor import DaskExecutor
 from daskrad.distributed.store import Store
-from daskrad.io import read_exr
 from daskrad.output import Outputs
 from daskrad.run import run, solve_scene
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
-
-REPO = Path(__file__).resolve().parent.parent
-CORNELL = REPO / "scenes" / "cornell_box.obj"
+from tests.helpers import CORNELL, REPO, assert_same_run, store_arrays
 
 # Small images and a bounded number of shots keep each run to about a second in-process; the
 # ≥5,000-element case uses the Cornell box with 25-unit elements (5,839 before subdivision).
@@ -41,39 +38,6 @@ CASES = {
     "5k": Settings(element_size=25.0, max_iterations=64, width=64, height=64,
                    dashboard="127.0.0.1:0"),
 }
-
-
-def store_arrays(path: Path) -> dict[str, np.ndarray]:
-    """Every array of a solution store except the worker task contexts (a cache of what the
-    client holds) and the older checkpoint slot; the active slot is named ``checkpoint/last``."""
-    import zarr
-
-    root = zarr.open_group(str(path), mode="r")
-    active = str(root.attrs["checkpoint"])
-    out = {}
-
-    def walk(group, prefix):
-        for name, member in group.members():
-            full = prefix + name
-            if full == "context" or (prefix == "checkpoint/" and name != active):
-                continue
-            if isinstance(member, zarr.Array):
-                out[full.replace(f"checkpoint/{active}/", "checkpoint/last/")] = member[...]
-            else:
-                walk(member, full + "/")
-
-    walk(root, "")
-    return out
-
-
-def assert_same_run(a: Path, b: Path) -> None:
-    """Bit-identical EXR and store arrays of two runs written to ``a`` and ``b`` (.exr)."""
-    np.testing.assert_array_equal(read_exr(a), read_exr(b))
-    sa, sb = store_arrays(a.with_suffix(".zarr")), store_arrays(b.with_suffix(".zarr"))
-    assert sorted(sa) == sorted(sb)
-    for name in sa:
-        assert sa[name].dtype == sb[name].dtype, name
-        np.testing.assert_array_equal(sa[name], sb[name], err_msg=name)
 
 
 @pytest.fixture(scope="module")

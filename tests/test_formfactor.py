@@ -27,12 +27,20 @@ import pytest
 
 from daskrad import formfactor as ff
 from daskrad.errors import OptionError, SceneError
-from daskrad.kernels.hemisphere import disc_pixels
-from tests.helpers import closed_box, grid, merge, square_above, triangle_soup
+from tests.helpers import (
+    ORIGIN,
+    UP,
+    closed_box,
+    corner_rectangle,
+    grid,
+    merge,
+    projected_perimeter_px,
+    raster_bound,
+    square_above,
+    triangle_soup,
+)
 
 RESOLUTIONS = (64, 128, 256, 512)
-UP = np.array([0.0, 0.0, 1.0])
-ORIGIN = np.zeros(3)
 
 
 # --- exact answers (REFERENCES.md) -------------------------------------------------------------
@@ -56,19 +64,13 @@ def howell_perpendicular(w, h, length):
                           * (h * h * (1 + z) / ((1 + h * h) * z)) ** (h * h)))
 
 
-def corner_rectangle(a, b, c):
-    """Differential area to a parallel a × b rectangle with one corner straight above at c."""
-    ra, rb = a / c, b / c
-    sa, sb = math.sqrt(1 + ra * ra), math.sqrt(1 + rb * rb)
-    return (ra / sa * math.atan(rb / sa) + rb / sb * math.atan(ra / sb)) / (2 * math.pi)
-
-
 def disc(radius, height):
     return radius * radius / (radius * radius + height * height)
 
 
 # --- geometry builders -------------------------------------------------------------------------
-# (grid, merge, closed_box, square_above: tests/helpers.py, shared with benchmarks/bench_methods.py)
+# (grid, merge, closed_box, square_above: daskrad.testing, re-exported by tests/helpers.py;
+# corner_rectangle, projected_perimeter_px, raster_bound: tests/helpers.py)
 
 def fan_polygon(radius, height, sides):
     """A regular polygon inscribed in the circle of ``radius`` at ``height``, facing down, as a
@@ -79,31 +81,6 @@ def fan_polygon(radius, height, sides):
     k = np.arange(sides)
     elems = np.stack([np.zeros(sides, int), (k + 1) % sides + 1, k + 1, -np.ones(sides, int)], -1)
     return verts, elems.astype(np.int32)
-
-
-def projected_perimeter_px(corners, resolution, point=ORIGIN, normal=UP):
-    """Length in pixels of the projected outline of the part of a polygon above the horizon."""
-    t1 = np.cross(normal, [1.0, 0, 0] if abs(normal[0]) < 0.9 else [0, 1.0, 0])
-    t1 /= np.linalg.norm(t1)
-    t2 = np.cross(normal, t1)
-    s = np.linspace(0.0, 1.0, 4001)[:, None]
-    total = 0.0
-    for a, b in zip(corners, np.roll(corners, -1, axis=0), strict=True):
-        w = a + s * (b - a) - point
-        z = w @ normal
-        keep = z > 0
-        d = w[keep] / np.linalg.norm(w[keep], axis=1)[:, None]
-        xy = np.stack([d @ t1, d @ t2], -1)
-        total += np.linalg.norm(np.diff(xy, axis=0), axis=1).sum()
-    # the horizon cut (if any) lies on the rim: bounded by the rim term of the error model
-    return total * resolution / 2
-
-
-def raster_bound(f_exact, perimeter_px, resolution):
-    """The error model of the module docstring."""
-    n_disc = disc_pixels(resolution)[2]
-    rim = abs(math.pi * resolution**2 / 4 - n_disc)
-    return (perimeter_px / 4 + 4 + f_exact * rim) / n_disc
 
 
 # --- Lambert's formula against closed forms ----------------------------------------------------

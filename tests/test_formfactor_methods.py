@@ -49,8 +49,18 @@ import pytest
 from daskrad import formfactor as ff
 from daskrad.kernels.hemicube import delta_form_factors
 from daskrad.kernels.hemisphere import disc_pixels
-from tests.helpers import closed_box, grid, merge, square_above, triangle_soup
-from tests.test_formfactor import ORIGIN, UP, corner_rectangle, projected_perimeter_px, raster_bound
+from tests.helpers import (
+    ORIGIN,
+    UP,
+    closed_box,
+    corner_rectangle,
+    grid,
+    merge,
+    projected_perimeter_px,
+    raster_bound,
+    square_above,
+    triangle_soup,
+)
 
 R = 256
 METHODS = ("hemisphere", "hemisphere-itembuffer", "hemisphere-scanline", "hemicube", "raycast",

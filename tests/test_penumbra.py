@@ -17,7 +17,7 @@ from daskrad.formfactor import shooting
 from daskrad.mesh import build_hierarchy
 from daskrad.scene import box_scene
 from daskrad.scene.corners import real_corners
-from tests import stress_cases as sc
+from daskrad.testing import stress as sc
 
 
 def _context(scene, patch=0.25, element=0.125, method="hemisphere", resolution=64):

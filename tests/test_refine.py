@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad import direct
+from daskrad import direct, tolerances
 from daskrad.kernels.grid import build_grid
 from daskrad.mesh import build_hierarchy, hierarchy_triangles
 from daskrad.mesh.refine import refine, resolve_tvertices
-from tests.test_direct import _blocker_scene, _in_shadow
+from tests.helpers import blocker_scene, in_shadow
 
 ELEMENT = 0.5
 MIN_SIZE = ELEMENT / 8
@@ -19,8 +19,8 @@ def _expected_floor_elements(x0, z0, size):
     differ (relative spread 1 > threshold) and its edge exceeds the minimum size."""
     corners = np.array([[x0, 0, z0], [x0 + size, 0, z0], [x0 + size, 0, z0 + size],
                         [x0, 0, z0 + size]])
-    dark = _in_shadow(corners)
-    if dark.all() or not dark.any() or size <= MIN_SIZE * (1 + 1e-9):
+    dark = in_shadow(corners)
+    if dark.all() or not dark.any() or size <= MIN_SIZE * (1 + tolerances.SPLIT_SIZE_RTOL):
         return 1
     half = size / 2
     return sum(_expected_floor_elements(x0 + i * half, z0 + j * half, half)
@@ -46,7 +46,7 @@ def _refine_direct(scene, rho):
 
 
 def _refined():
-    return _refine_direct(_blocker_scene(), 0.5)
+    return _refine_direct(blocker_scene(), 0.5)
 
 
 def test_subdivision_refines_around_the_shadow_and_nowhere_else():

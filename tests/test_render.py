@@ -15,6 +15,7 @@ from daskrad.io import read_exr
 from daskrad.kernels.grid import build_grid
 from daskrad.mesh import build_hierarchy, hierarchy_triangles, vertex_average
 from daskrad.scene import Camera, scene_from_arrays
+from tests.helpers import SCENES
 
 
 def _plane_context(radiance, normal_up=True, size=64, spp=1):
@@ -71,8 +72,6 @@ def test_camera_right_is_forward_cross_up():
 
 @pytest.fixture(scope="module")
 def cornell(tmp_path_factory, ):
-    from tests.conftest import SCENES
-
     out = tmp_path_factory.mktemp("cb") / "cb.exr"
     cmd = [sys.executable, "-m", "daskrad", "run", str(SCENES / "cornell_box.obj"), "-o",
            str(out), "--workers", "0", "--width", "96", "--height", "96", "-q"]

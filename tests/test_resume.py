@@ -25,7 +25,7 @@ from daskrad.io import read_exr
 from daskrad.output import Outputs
 from daskrad.run import run
 from daskrad.settings import Settings
-from tests.test_distributed import CORNELL, assert_same_run
+from tests.helpers import CORNELL, assert_same_run
 
 # Long enough (60 batches of 8) that the client is still shooting when its first checkpoint
 # (after batch 8) appears, short enough to keep each run to a few seconds.

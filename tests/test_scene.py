@@ -19,6 +19,7 @@ from daskrad.scene.polygons import (
     pair_triangles,
     polygon_area,
 )
+from tests.helpers import SCENES
 
 # Coordinates are written in the files with at most 4 significant digits and areas are sums of
 # a few products of them, so areas agree to round-off of float64 (relative ~1e-15); 1e-9 is
@@ -50,8 +51,6 @@ def write(path, text):
 
 @pytest.fixture(scope="module")
 def cornell():
-    from tests.conftest import SCENES
-
     return load_scene(SCENES / "cornell_box.obj")
 
 
@@ -145,8 +144,6 @@ def test_cornell_quads_planar_convex_and_red_wall_split(cornell):
 
 def test_cornell_areas_match_trimesh(cornell):
     """The direct OBJ parser and trimesh.load_scene agree on every material's total area."""
-    from tests.conftest import SCENES
-
     ts = trimesh.load_scene(SCENES / "cornell_box.obj", process=False)
     area = polygon_area(cornell.vertices, cornell.polygons)
     for node in ts.graph.nodes_geometry:
@@ -159,8 +156,6 @@ def test_cornell_areas_match_trimesh(cornell):
 
 
 def test_furnace_box():
-    from tests.conftest import SCENES
-
     s = load_scene(SCENES / "furnace_box.obj")
     assert len(s.polygons) == 6 and (s.polygons[:, 3] >= 0).all()
     np.testing.assert_array_equal(s.materials.emission, [[1, 1, 1]])

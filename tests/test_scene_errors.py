@@ -12,8 +12,7 @@ import pytest
 
 from daskrad.errors import SceneError
 from daskrad.scene import load_scene, scene_from_arrays
-
-REPO = Path(__file__).resolve().parent.parent
+from tests.helpers import CORNELL, REPO
 
 TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
 
@@ -241,7 +240,7 @@ def test_faces_that_touch_or_face_away_are_not_overlaps(tmp_path, body):
 def test_cornell_box_light_in_the_ceiling_hole_is_not_an_overlap():
     # the light lies in the ceiling's plane, facing down like the ceiling's pieces around it,
     # and touches them along edges only (the ceiling is four pieces around the hole)
-    scene = load_scene(REPO / "scenes" / "cornell_box.obj")
+    scene = load_scene(CORNELL)
     assert scene.emitting.sum() >= 1
 
 

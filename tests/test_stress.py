@@ -1,7 +1,7 @@
 """Numerical stability under stress (issue 7): degenerate geometry, units, near field,
 reflectance near 1, light levels, random scenes, long runs.
 
-The cases live in tests/stress_cases.py (shared with benchmarks/bench_stress.py, the stress
+The cases live in daskrad/testing/stress.py (shared with benchmarks/bench_stress.py, the stress
 report). Each assertion compares a measured figure against an exact answer: the furnace
 ``B = E/(1 − ρ)``, the bound ``max(E)/(1 − ρ_max)``, the closed-scene energy ledger (exact to
 round-off after every shot), or bit/ulp identity of images that must not depend on units or
@@ -21,7 +21,7 @@ from daskrad import solve
 from daskrad.errors import SceneError
 from daskrad.run import solve_scene
 from daskrad.scene import box_scene, scene_from_arrays
-from tests import stress_cases as sc
+from daskrad.testing import stress as sc
 
 
 def _assert_ok(results):

@@ -6,7 +6,7 @@ polygon, one-sided along its normal) gives the irradiance
     ``H = π Le F · V``,
 
 ``F`` Lambert's unoccluded point-to-polygon form factor (exact; the same
-:func:`daskrad.kernels.direct.lambert_polygon` the shadow-ray method uses, so the unoccluded
+:func:`daskrad.kernels.lambert.lambert_polygon` the shadow-ray method uses, so the unoccluded
 answer is the same bits for both methods) and ``V`` the visible fraction of the light. By
 Nusselt's analog (DESIGN §2) ``F`` is the area of the light's projection onto the base disc of
 the unit hemisphere over ``p``, over ``π``; and every point of the disc carries the same weight,
@@ -54,7 +54,6 @@ from __future__ import annotations
 import numpy as np
 
 from daskrad.kernels._jit import jit
-from daskrad.kernels.direct import lambert_polygon
 from daskrad.kernels.geometry import orthonormal_basis
 from daskrad.kernels.grid import any_hit_one
 from daskrad.kernels.hemisphere import (
@@ -64,6 +63,8 @@ from daskrad.kernels.hemisphere import (
     project_element,
     split_table,
 )
+from daskrad.kernels.lambert import lambert_polygon
+from daskrad.kernels.tolerances import WINDOW_MIN
 
 
 @jit
@@ -320,7 +321,7 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
     y0 = max(y0, -1.0)
     x1 = min(x1, 1.0)
     y1 = min(y1, 1.0)
-    if not (x1 - x0 > 1e-12 and y1 - y0 > 1e-12):
+    if not (x1 - x0 > WINDOW_MIN and y1 - y0 > WINDOW_MIN):
         return _centroid_ray(grid, ex, ey, ez, corners, count, off), n_c
     inv_px = r / (x1 - x0)
     inv_py = r / (y1 - y0)

@@ -29,8 +29,8 @@ from __future__ import annotations
 import numpy as np
 
 from daskrad.kernels._jit import jit
-from daskrad.kernels.geometry import lex_less
 from daskrad.kernels.grid import any_hit_one
+from daskrad.kernels.lambert import lambert_polygon
 
 _INV_2_53 = 1.0 / 9007199254740992.0
 
@@ -44,64 +44,6 @@ def hash01(seed, k):
     z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
     z = z ^ (z >> np.uint64(31))
     return float(z >> np.uint64(11)) * _INV_2_53
-
-
-@jit
-def lambert_polygon(px, py, pz, nx, ny, nz, corners, count):
-    """Lambert's unoccluded form factor from the differential area ``(p, n)`` to the polygon
-    ``corners[:count] (count, 3)``, clipped to ``n · (x − p) ≥ 0`` (REFERENCES.md).
-
-    Orientation is not checked here (the caller decides one-sidedness). The batch twin over
-    elements is :func:`daskrad.kernels.lambert._lambert`, written out for speed.
-    """
-    cx = np.empty(4)
-    cy = np.empty(4)
-    cz = np.empty(4)
-    h = np.empty(4)
-    qx = np.empty(5)
-    qy = np.empty(5)
-    qz = np.empty(5)
-    hmax = -1.0
-    hmin = 1.0
-    for c in range(count):
-        cx[c] = corners[c, 0] - px
-        cy[c] = corners[c, 1] - py
-        cz[c] = corners[c, 2] - pz
-        h[c] = nx * cx[c] + ny * cy[c] + nz * cz[c]
-        hmax = max(hmax, h[c])
-        hmin = min(hmin, h[c])
-    if hmax <= 0.0:
-        return 0.0
-    m = 0
-    for c in range(count):
-        d = (c + 1) % count
-        if h[c] >= 0.0:
-            qx[m] = cx[c]
-            qy[m] = cy[c]
-            qz[m] = cz[c]
-            m += 1
-        if hmin < 0.0 and (h[c] >= 0.0) != (h[d] >= 0.0):
-            if lex_less(cx[c], cy[c], cz[c], cx[d], cy[d], cz[d]):
-                a, b = c, d
-            else:
-                a, b = d, c
-            t = h[a] / (h[a] - h[b])
-            qx[m] = cx[a] + t * (cx[b] - cx[a])
-            qy[m] = cy[a] + t * (cy[b] - cy[a])
-            qz[m] = cz[a] + t * (cz[b] - cz[a])
-            m += 1
-    total = 0.0
-    for c in range(m):
-        d = (c + 1) % m
-        gx = qy[c] * qz[d] - qz[c] * qy[d]
-        gy = qz[c] * qx[d] - qx[c] * qz[d]
-        gz = qx[c] * qy[d] - qy[c] * qx[d]
-        g = np.sqrt(gx * gx + gy * gy + gz * gz)
-        if g == 0.0:
-            continue
-        gamma = np.arctan2(g, qx[c] * qx[d] + qy[c] * qy[d] + qz[c] * qz[d])
-        total += gamma * (nx * gx + ny * gy + nz * gz) / g
-    return abs(total) * (0.5 / np.pi)
 
 
 @jit

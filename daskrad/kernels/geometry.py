@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from daskrad.kernels._jit import jit
+from daskrad.kernels.tolerances import LEX_TIE
 
 
 @jit
@@ -30,11 +31,6 @@ def orthonormal_basis(nx, ny, nz):
     )
 
 
-#: Coordinates of two points closer than ``LEX_TIE`` times their magnitudes tie in
-#: :func:`lex_less` (listed in :mod:`daskrad.tolerances`).
-LEX_TIE = 1e-12
-
-
 @jit
 def lex_less(ax, ay, az, bx, by, bz):
     """``a < b`` lexicographically: the canonical order of an edge's two endpoints.
@@ -44,11 +40,12 @@ def lex_less(ax, ay, az, bx, by, bz):
     lexicographically smaller endpoint makes both get bit-identical results, so the raster is
     watertight across shared edges.
 
-    Coordinates equal up to round-off (``LEX_TIE``, relative) tie and the next one decides: an
-    edge perpendicular to the first axis has endpoints whose first coordinates are equal in
-    exact arithmetic, and letting their round-off pick the canonical end would move the
-    edge's split points (eq. 4) with the scene's units (issue 7: a ceiling shooter seeing a
-    wall edge along its frame's second axis changed its row by 1.5 % at ×1000).
+    Coordinates equal up to round-off (``LEX_TIE``, relative; daskrad/kernels/tolerances.py) tie
+    and the next one decides: an edge perpendicular to the first axis has endpoints whose first
+    coordinates are equal in exact arithmetic, and letting their round-off pick the canonical
+    end would move the edge's split points (eq. 4) with the scene's units (issue 7: a ceiling
+    shooter seeing a wall edge along its frame's second axis changed its row by 1.5 % at
+    ×1000).
     """
     tie = LEX_TIE * (abs(ax) + abs(ay) + abs(az) + abs(bx) + abs(by) + abs(bz))
     if abs(ax - bx) > tie:

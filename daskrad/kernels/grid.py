@@ -32,6 +32,7 @@ from typing import NamedTuple
 import numpy as np
 
 from daskrad.kernels._jit import jit
+from daskrad.kernels.tolerances import COORD_ROUND, GRID_MARGIN, GRID_PAD, RAY_EPS
 
 #: Largest number of cells along one axis.
 MAX_DIM = 512
@@ -41,19 +42,8 @@ MAX_DIM = 512
 #: the machine's noise of each other; 2 was never far from the best on either kind of scene.
 DEFAULT_DENSITY = 2.0
 
-#: The grid's box is the scene's box padded by this fraction of the scene diagonal on every
-#: side: a flat scene (zero extent on an axis) then still has a box of positive volume, and no
-#: vertex lies on the box's boundary.
-_BOX_PAD = 1e-6
-
-#: Triangles are registered in cells enlarged by this fraction of the scene diagonal (plus
-#: 2·eps and rounding of the coordinates): far larger than the rounding of a DDA cell boundary
-#: (~1e-16 of the coordinates' magnitude), far smaller than any cell.
-_REG_MARGIN = 1e-9
-
-#: Rounding of a coordinate, relative to the largest coordinate magnitude (a few ulps), for
-#: scenes far from the origin where coordinate rounding dominates the diagonal-relative margin.
-_COORD_ROUND = 1e-14
+# The box padding, registration margin and coordinate rounding of the grid are GRID_PAD,
+# GRID_MARGIN and COORD_ROUND in daskrad/kernels/tolerances.py.
 
 
 class Grid(NamedTuple):
@@ -212,7 +202,7 @@ def grid_dims(extent: np.ndarray, n_triangles: int, density: float) -> np.ndarra
 
 def build_grid(
     triangles: np.ndarray,
-    rel_eps: float = 1e-12,
+    rel_eps: float = RAY_EPS,
     density: float = DEFAULT_DENSITY,
     exact: bool = True,
 ) -> Grid:
@@ -221,7 +211,7 @@ def build_grid(
     triangles : (T, 3, 3) float64
         Vertices; finite.
     rel_eps : float
-        Edge tolerance relative to the scene diagonal (``daskrad.tolerances.RAY_EPS``).
+        Edge tolerance relative to the scene diagonal (default ``tolerances.RAY_EPS``).
     density : float
         Cells per triangle (λ); the grid has about ``density * T`` cells.
     exact : bool
@@ -242,12 +232,12 @@ def build_grid(
     scale = diag if diag > 0 else 1.0  # a single point: any positive scale will do
     maxabs = float(np.abs(np.concatenate([lo, hi])).max())
     eps = rel_eps * scale
-    pad = _BOX_PAD * scale + _COORD_ROUND * maxabs
+    pad = GRID_PAD * scale + COORD_ROUND * maxabs
     origin = lo - pad
     extent = (hi + pad) - origin
     dims = grid_dims(extent, len(tris), density)
     cell = extent / dims
-    margin = 2.0 * eps + _REG_MARGIN * scale + _COORD_ROUND * maxabs
+    margin = 2.0 * eps + GRID_MARGIN * scale + COORD_ROUND * maxabs
     n_cells = int(np.prod(dims))
     cell_start = np.zeros(n_cells + 1, dtype=np.int64)
     empty = np.zeros(0, dtype=np.int32)

@@ -34,6 +34,7 @@ import numpy as np
 from daskrad.kernels._jit import jit
 from daskrad.kernels.geometry import element_planes, lex_less, scene_diagonal
 from daskrad.kernels.hemisphere import local_frame
+from daskrad.kernels.tolerances import SPHERE_PAD
 
 #: Face axes in the shooter's local frame: for each of the 5 faces, (index, sign) of the local
 #: coordinate giving ``a``, ``b`` and ``c``. Face 0 is the top; 1–4 the sides, whose ``b`` is the
@@ -52,8 +53,8 @@ def element_spheres(vertices, elem_verts):
     """Bounding sphere of every element, per call (it does not depend on the shooter).
 
     Returns ``centre : (E, 3) float64`` (the mean of the corners) and ``radius : (E,) float64``
-    (the largest corner distance, rounded up by a relative 1e-12 so that the sphere test never
-    culls an element one of whose corners lies above the horizon).
+    (the largest corner distance, rounded up by the relative ``SPHERE_PAD`` so that the sphere
+    test never culls an element one of whose corners lies above the horizon).
     """
     n_elem = elem_verts.shape[0]
     centre = np.empty((n_elem, 3))
@@ -79,7 +80,7 @@ def element_spheres(vertices, elem_verts):
         centre[e, 0] = mx
         centre[e, 1] = my
         centre[e, 2] = mz
-        radius[e] = np.sqrt(r2) * (1.0 + 1e-12) + 1e-300
+        radius[e] = np.sqrt(r2) * (1.0 + SPHERE_PAD) + 1e-300
     return centre, radius
 
 

@@ -69,12 +69,7 @@ import numpy as np
 
 from daskrad.kernels._jit import jit
 from daskrad.kernels.geometry import element_planes, lex_less, orthonormal_basis, scene_diagonal
-
-#: Relative nearness difference below which two elements tie on the item buffer (and in the
-#: visibility test of elements that cover no pixel centre): coplanar elements compute the same
-#: plane to round-off (~1e-15 relative), while distinct surfaces that close in depth along one
-#: direction meet at a contact line, where either answer is right.
-DEPTH_TIE = 1e-9
+from daskrad.kernels.tolerances import DEPTH_TIE
 
 
 @jit

@@ -22,6 +22,7 @@ from numba import prange
 
 from daskrad.kernels._jit import jit, jit_parallel
 from daskrad.kernels.grid import any_hit_one, closest_hit_one
+from daskrad.kernels.tolerances import SHADOW_SHORTEN
 
 
 @jit
@@ -73,7 +74,7 @@ def _radiance(grid, tri_normal, tri_rho, tri_ke, light_tris, light_cdf, light_ar
             cx = n[0] * w[0] + n[1] * w[1] + n[2] * w[2]
             cy = -(nl[0] * w[0] + nl[1] * w[1] + nl[2] * w[2])
             if cx > 0.0 and cy > 0.0:
-                if not any_hit_one(grid, xo, w, 0.0, dist * (1.0 - 1e-9) - offset):
+                if not any_hit_one(grid, xo, w, 0.0, dist * (1.0 - SHADOW_SHORTEN) - offset):
                     L += f * tri_ke[lt] * (cx * cy / dist2 * light_area)
         for m in range(len(pl_pos)):
             w = pl_pos[m] - xo

@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from daskrad import tolerances
 from daskrad.kernels.refine import resolve_tvertices_kernel
 from daskrad.mesh.types import Hierarchy
 
@@ -100,8 +101,9 @@ def needs_split(h: Hierarchy, vertex_values: np.ndarray, threshold: float,
     sp = (corners.max(axis=1) - corners.min(axis=1)).max(axis=1)
     p = h.vertices[np.stack([ev[:, 0], ev[:, 1], ev[:, 2], c3], axis=1)]
     edge = np.linalg.norm(np.roll(p, -1, axis=1) - p, axis=2).max(axis=1)
-    # 1e-9: an edge equal to min_size up to round-off is not split again
-    return (sp > threshold * level) & (level > 0) & (edge > min_size * (1.0 + 1e-9))
+    # an edge equal to min_size up to round-off is not split again
+    return ((sp > threshold * level) & (level > 0)
+            & (edge > min_size * (1.0 + tolerances.SPLIT_SIZE_RTOL)))
 
 
 def split_elements(h: Hierarchy, split: np.ndarray, mid_keys: np.ndarray,

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from daskrad import tolerances
 from daskrad.errors import SceneError
 from daskrad.scene.types import Camera, DirectionalLights, PointLights
 
@@ -98,7 +99,7 @@ def _camera(table, path: Path) -> Camera:
     if not np.linalg.norm(forward) > 0:
         raise SceneError("camera.eye and camera.look_at are the same point", path)
     cross = np.linalg.norm(np.cross(forward, up))
-    if not cross > 1e-9 * np.linalg.norm(forward) * np.linalg.norm(up):
+    if not cross > tolerances.CAMERA_UP_SINE * np.linalg.norm(forward) * np.linalg.norm(up):
         raise SceneError("camera.up is zero or parallel to the view direction", path)
     return Camera(
         eye=eye, look_at=look_at, up=up, fov=float(fov), width=size["width"], height=size["height"]

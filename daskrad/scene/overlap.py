@@ -23,12 +23,6 @@ import numpy as np
 
 from daskrad import tolerances
 
-#: Cell of the plane buckets: unit-normal components and offsets (over the scene diagonal).
-#: Only a performance filter; the exact test decides. Two faces coplanar within the tolerance
-#: but with normals more than ``PLANE_CELL / 5`` apart (only faces smaller than
-#: ``COPLANAR · diag / (PLANE_CELL / 5)`` can be) are not compared.
-PLANE_CELL = 1e-3
-
 #: Candidate pairs tested per chunk (bounds the memory of a plane tiled by many faces).
 CHUNK = 1 << 20
 
@@ -148,12 +142,13 @@ def coplanar_overlaps(vertices: np.ndarray, polygons: np.ndarray, diag: float) -
     if q < 2:
         return np.zeros((0, 2), np.int64)
     eps = tolerances.COPLANAR * diag
+    cell = tolerances.COPLANAR_CELL
     # relative to the box's corner: offsets keep their precision in a scene far from the origin
     c = _corners(vertices, polygons)
     c = c - c.reshape(-1, 3).min(axis=0)
     n = _unit_normals(c)
     centre = c.mean(axis=1)
-    params = np.column_stack([n, np.einsum("ij,ij->i", n, centre) / diag]) / PLANE_CELL
+    params = np.column_stack([n, np.einsum("ij,ij->i", n, centre) / diag]) / cell
     lo, hi = c.min(axis=1), c.max(axis=1)
     found = []
     idx = np.arange(q)

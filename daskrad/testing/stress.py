@@ -1,5 +1,5 @@
-"""The numerical stress cases of issue 7, shared by tests/test_stress.py and
-benchmarks/bench_stress.py.
+"""The numerical stress cases of issue 7, shared by tests/test_stress.py, tests/test_penumbra.py
+and benchmarks/bench_stress.py (the stress report).
 
 Every case is a function returning a :class:`Result`: the measured error of one quantity and
 the limit it must hold. The tests assert ``result.ok``; the stress report prints the table.
@@ -35,8 +35,9 @@ from daskrad.run import run, solve_scene
 from daskrad.scene import box_scene, scene_from_arrays
 from daskrad.settings import Settings
 
-REPO = Path(__file__).resolve().parent.parent
-CORNELL = REPO / "scenes" / "cornell_box.obj"
+#: The measured Cornell box of a source checkout (``scenes/`` is not installed with the
+#: package): the units and light-level cases write scaled copies of it.
+CORNELL = Path(__file__).resolve().parents[2] / "scenes" / "cornell_box.obj"
 
 #: Furnace-style degenerate scenes: every face emits exitance 1 (radiance 1/π), ρ = 0.5.
 RHO = 0.5

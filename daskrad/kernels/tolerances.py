@@ -1,0 +1,60 @@
+"""The numerical tolerances the kernels use, in one place beside them.
+
+Kernels import nothing of the project outside ``daskrad.kernels`` (an import-linter contract),
+so their tolerances are defined here, and :mod:`daskrad.tolerances` re-exports every one of them
+with the tolerances of the rest of the package: ``from daskrad import tolerances`` gives them
+all. Numba freezes a module global into the compiled code as a constant, so a name here costs
+nothing over a literal in the kernel. For the same reason numba's on-disk cache does not notice
+a changed value here (it checks only the kernel's own source file); the Makefile drops every
+cached kernel when any file of ``daskrad/kernels/``, this one included, is newer than its stamp.
+
+Relative tolerances are relative to the quantity named (the scene's diagonal, a coordinate's
+magnitude, a nearness), never fixed epsilons, so a scene in millimetres and the same scene in
+kilometres behave the same (issue 7).
+"""
+
+#: Two coordinates closer than this, relative to the points' magnitudes, tie when the raster
+#: orders an edge's endpoints (:func:`daskrad.kernels.geometry.lex_less`: round-off must not
+#: decide which end the polyline starts from).
+LEX_TIE = 1e-12
+
+#: Relative nearness difference below which two elements tie on the hemisphere base's item
+#: buffer (and in the visibility test of elements that cover no pixel centre,
+#: :mod:`daskrad.kernels.hemisphere`): coplanar elements compute the same plane to round-off
+#: (~1e-15 relative), while distinct surfaces that close in depth along one direction meet at a
+#: contact line, where either answer is right.
+DEPTH_TIE = 1e-9
+
+#: Rays hit triangles within ``RAY_EPS * diag`` of an edge (watertightness across shared edges):
+#: the default ``rel_eps`` of :func:`daskrad.kernels.grid.build_grid`.
+RAY_EPS = 1e-12
+
+#: The voxel grid's box is the scene's box padded by this fraction of the scene diagonal on every
+#: side: a flat scene (zero extent on an axis) then still has a box of positive volume, and no
+#: vertex lies on the box's boundary.
+GRID_PAD = 1e-6
+
+#: Triangles are registered in grid cells enlarged by this fraction of the scene diagonal (plus
+#: 2·eps and rounding of the coordinates): far larger than the rounding of a DDA cell boundary
+#: (~1e-16 of the coordinates' magnitude), far smaller than any cell.
+GRID_MARGIN = 1e-9
+
+#: Rounding of a coordinate, relative to the largest coordinate magnitude (a few ulps), for
+#: scenes far from the origin where coordinate rounding dominates the diagonal-relative margins
+#: of the grid.
+COORD_ROUND = 1e-14
+
+#: The hemicube's bounding sphere of an element is rounded up by this relative amount, so that
+#: its horizon test never culls an element one of whose corners lies above the horizon
+#: (:func:`daskrad.kernels.hemicube.element_spheres`).
+SPHERE_PAD = 1e-12
+
+#: An area light's window on the hemisphere base narrower than this (in disc units, the disc has
+#: radius 1) on either axis holds no pixel worth rasterizing; its visibility is one ray to the
+#: light's centroid instead (:mod:`daskrad.kernels.arealight`).
+WINDOW_MIN = 1e-12
+
+#: The reference path tracer's shadow ray to a point of a light stops this fraction of the
+#: distance short of it (besides the absolute ray offset), so the light's own triangle does not
+#: block it (:mod:`daskrad.kernels.pathtrace`).
+SHADOW_SHORTEN = 1e-9
