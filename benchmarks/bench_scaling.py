@@ -77,9 +77,9 @@ def start(workers: int, h, tmp: Path):
     store = Store(tmp / f"scaling-{workers}.zarr", settings).open()
     executor = start_local(settings, store)
     ctx = shooting.make_context(h, settings.method, settings.resolution,
-                             edge_angle=settings.edge_angle)
+                                edge_angle=settings.edge_angle)
     executor.set_geometry(ctx, h.generation)
-    generation, token = executor._shoot
+    generation, token = executor.geometry
     executor.client.run(worker.context, store.path, "shoot", generation, token)
     executor.shots(10**6, np.arange(workers)).result()
     return executor

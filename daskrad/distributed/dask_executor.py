@@ -82,19 +82,19 @@ class DaskExecutor:
         self._count_workers()
         self.dashboard_link = _dashboard(client)
         self.stats = {"wait": 0.0, "tasks": 0}
-        self._shoot = None                 # (generation, token) of the current geometry
+        self.geometry = None               # (generation, token) of the current geometry
         self._probed = False
 
     # --- the executor interface -------------------------------------------------------------
 
     def set_geometry(self, shoot_ctx: shooting.ShootContext, generation: int = 0) -> None:
         token = self.store.put_context("shoot", shoot_ctx)
-        self._shoot = (generation, token)
+        self.geometry = (generation, token)
         self._probe("shoot", token)
 
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Batch:
         """Batch ``batch_no``, split into one task per worker so all of them work on it."""
-        generation, token = self._shoot
+        generation, token = self.geometry
         self._count_workers()
         ids = np.asarray(patch_ids, np.int64)
         parts = np.array_split(ids, max(1, min(len(ids), self.workers)))
@@ -107,7 +107,7 @@ class DaskExecutor:
         return _Batch(futures, self.stats)
 
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
-        generation = self._shoot[0] if self._shoot else 0
+        generation = self.geometry[0] if self.geometry else 0
         token = self.store.put_context("render", ctx)
         self._probe("render", token)
         futures = [
