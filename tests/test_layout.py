@@ -49,3 +49,39 @@ def test_the_checks_see_a_test_module_import(tmp_path):
     f = tmp_path / "t.py"
     f.write_text("from tests.test_direct import x\ndef g():\n    from tests import stress_cases\n")
     assert {"tests.test_direct", "tests.stress_cases"} <= imported_modules(f)
+
+
+def private_uses(path):
+    """Names with a leading underscore that the file takes from daskrad: ``from daskrad.x
+    import _y`` and ``alias._y`` where ``alias`` names a daskrad module or object imported
+    into the file."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    aliases, out = set(), set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("daskrad"):
+            for a in node.names:
+                if a.name.startswith("_"):
+                    out.add(f"{node.module}.{a.name}")
+                aliases.add(a.asname or a.name)
+        elif isinstance(node, ast.Import):
+            aliases.update(a.asname or a.name.split(".")[0] for a in node.names
+                           if a.name.startswith("daskrad"))
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Attribute) and node.attr.startswith("_")
+                and not node.attr.startswith("__") and isinstance(node.value, ast.Name)
+                and node.value.id in aliases):
+            out.add(f"{node.value.id}.{node.attr}")
+    return out
+
+
+@pytest.mark.parametrize("path", _files("tests") + _files("benchmarks"),
+                         ids=lambda p: f"{p.parent.name}/{p.name}")
+def test_no_private_names_of_the_package(path):
+    assert not private_uses(path), f"{path.name} uses {sorted(private_uses(path))}"
+
+
+def test_the_private_check_sees_private_names(tmp_path):
+    f = tmp_path / "t.py"
+    f.write_text("from daskrad.run import _camera\nfrom daskrad.formfactor import shooting\n"
+                 "x = shooting._strata(2)\n")
+    assert private_uses(f) == {"daskrad.run._camera", "shooting._strata"}

@@ -20,7 +20,7 @@ from daskrad.preprocess import preprocess
 from daskrad.run import run, solve_scene
 from daskrad.scene import box_scene, load_scene
 from daskrad.settings import Settings
-from tests.conftest import REPO
+from tests.helpers import REPO
 
 CORNELL = REPO / "scenes" / "cornell_box.obj"
 SMALL = Settings(patch_size=150.0, element_size=75.0, resolution=64, tolerance=1e-2,
