@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from daskrad.kernels.grid import build_grid
-from daskrad.mesh import build_hierarchy, default_sizes, hierarchy_triangles
-from daskrad.run import run
+from daskrad.mesh import default_sizes
+from daskrad.preprocess import preprocess
+from daskrad.run import interrupted, run
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
 
@@ -33,25 +33,23 @@ def run_command(args) -> None:
     except SystemError as err:
         # Ctrl-C inside a numba kernel surfaces as "SystemError: ... returned a result with
         # an exception set" chained to the KeyboardInterrupt: report it as the interrupt
-        cause = err
-        while cause is not None and not isinstance(cause, KeyboardInterrupt):
-            cause = cause.__cause__ or cause.__context__
-        if cause is None:
+        if not interrupted(err):
             raise
         raise KeyboardInterrupt from None
-    print(f"wrote {output}, {Path(output).with_suffix('.png')}, "
-          f"{Path(output).with_suffix('.json')}")
+    out = Path(output)
+    print(f"wrote {out}, {out.with_suffix('.png')}, {out.with_suffix('.json')} and the "
+          f"store {out.with_suffix('.zarr')}")
 
 
 def info_text(args) -> str:
     """``daskrad info``: the hierarchy, emitters and lights, bounding box and grid size."""
     scene = load_scene(args.scene, args.config)
-    h = build_hierarchy(scene, args.patch_size, args.element_size)
+    settings = Settings(patch_size=args.patch_size, element_size=args.element_size).validate()
+    mesh = preprocess(scene, settings)
+    h, grid, tris = mesh.hierarchy, mesh.grid, mesh.triangles
     patch_size, element_size = (args.patch_size or default_sizes(scene)[0],
                                 args.element_size or default_sizes(scene)[1])
-    tris, _, _ = hierarchy_triangles(h)
-    grid = build_grid(tris)
-    lo, hi = scene.bounds
+    lo, hi = scene.bounds + scene.origin          # in the file's coordinates
     quads = int((scene.polygons[:, 3] >= 0).sum())
     lines = [
         f"scene       {scene.path}",

@@ -74,8 +74,8 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor) -> d
         image = render.image(scene, light, sol, settings, ex, camera)             # 4
         store.finish(image.context.vertex_radiance * math.pi)
         seconds["render"], t = time.perf_counter() - t, time.perf_counter()
-    except Exception:
-        if not resume:
+    except Exception as err:
+        if not (resume or interrupted(err)):    # a stopped run keeps its checkpoint
             outputs.discard(Path(store.path))
         raise
     finally:
@@ -112,6 +112,14 @@ def solve_scene(scene, settings: Settings, executor=None, on_batch=None) -> Solv
     light = direct.light(scene, preprocess(scene, settings), settings, ex)
     sol = solve.radiosity(light, settings, ex, on_batch=on_batch)
     return Solved(light.mesh.hierarchy, light.mesh.reflectance, sol, light)
+
+
+def interrupted(err: BaseException | None) -> bool:
+    """Whether ``err`` comes from Ctrl-C (inside a numba kernel it surfaces as a SystemError
+    chained to the KeyboardInterrupt)."""
+    while err is not None and not isinstance(err, KeyboardInterrupt):
+        err = err.__cause__ or err.__context__
+    return err is not None
 
 
 def _announce(executor, settings: Settings) -> None:

@@ -26,6 +26,7 @@ from daskrad.distributed import worker
 from daskrad.distributed.dask_executor import DaskExecutor
 from daskrad.distributed.store import Store
 from daskrad.output import Outputs
+from daskrad.preprocess import preprocess
 from daskrad.run import run, solve_scene
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
@@ -220,3 +221,35 @@ def test_lit_room_direct_pass_same_bits_in_process_and_on_two_workers(tmp_path, 
     assert report["counts"]["emitters"] > 0
     assert direct_batches and sum(direct_batches) > 0  # direct light ran as futures
     assert_same_run(a, b)
+
+
+def test_a_patch_shoots_again_on_the_worker_that_holds_its_row(cluster_client, tmp_path):
+    # issue 12: each worker keeps the rows it computed; a re-shot sent elsewhere computes the
+    # row again. The second time a batch shoots, every row is a cache hit, and the rows are
+    # the bits of the first time (and of the in-process executor)
+    from daskrad.distributed.executor import InProcess
+    from daskrad.formfactor import shooting
+
+    scene = load_scene(CORNELL)
+    settings = CASES["cornell"]
+    h = preprocess(scene, settings).hierarchy
+    ctx = shooting.make_context(h, settings.method, settings.resolution)
+    store = Store(tmp_path / "rows.zarr", settings).open()
+    executor = DaskExecutor(cluster_client, store)
+    executor.set_geometry(ctx, h.generation)
+    cluster_client.run(worker.forget_rows)
+    ids = np.arange(12)
+    first = executor.shots(0, ids).result()
+    before = cluster_client.run(worker.state)
+    again = executor.shots(1, ids[::-1]).result()
+    after = cluster_client.run(worker.state)
+    hits = sum(after[w]["row_hits"] - before[w]["row_hits"] for w in after)
+    misses = sum(after[w]["row_misses"] - before[w]["row_misses"] for w in after)
+    assert (hits, misses) == (12, 0)
+    # the new rows of the first batch were shared out: both workers computed some
+    assert all(before[w]["row_misses"] > 0 for w in before)
+    local = InProcess(ctx).shots(0, ids).result()
+    for a, b, c in zip(first, again[::-1], local, strict=True):
+        for x, y, z in zip(a, b, c, strict=True):
+            np.testing.assert_array_equal(x, y)
+            np.testing.assert_array_equal(x, z)

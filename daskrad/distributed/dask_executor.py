@@ -35,11 +35,15 @@ ROUTES_MODULE = "daskrad.distributed.dashboard"
 
 
 class _Batch:
-    """A batch's futures (one per part); ``result()`` joins the rows in shooter order."""
+    """A batch's futures (one per worker); ``result()`` gives the rows in shooter order.
 
-    def __init__(self, futures: list, stats: dict):
+    ``order[k]`` is the position in the batch of the ``k``-th row the futures return, in
+    future order (a future computes the shooters one worker holds)."""
+
+    def __init__(self, futures: list, stats: dict, order: list[int]):
         self.futures = futures
         self.stats = stats
+        self.order = order
 
     def result(self) -> list:
         t = time.perf_counter()
@@ -48,7 +52,10 @@ class _Batch:
             rows.extend(future.result())
         self.stats["wait"] += time.perf_counter() - t
         self.futures = []                  # release: the scheduler forgets the keys
-        return rows
+        out = [None] * len(rows)
+        for k, row in zip(self.order, rows, strict=True):
+            out[k] = row
+        return out
 
 
 class DaskExecutor:
@@ -78,6 +85,8 @@ class DaskExecutor:
         self.store = store
         self.run = uuid.uuid4().hex[:8]
         self.workers = 0
+        self.addresses: list[str] = []     # the workers' addresses, sorted
+        self.owner: dict[int, str] = {}
         self._counted = -float("inf")
         self._count_workers()
         self.dashboard_link = _dashboard(client)
@@ -90,21 +99,43 @@ class DaskExecutor:
     def set_geometry(self, shoot_ctx: shooting.ShootContext, generation: int = 0) -> None:
         token = self.store.put_context("shoot", shoot_ctx)
         self.geometry = (generation, token)
+        self.owner = {}                    # patch id -> the worker holding its row
         self._probe("shoot", token)
 
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Batch:
-        """Batch ``batch_no``, split into one task per worker so all of them work on it."""
+        """Batch ``batch_no``: one task per worker, each computing the shooters it holds.
+
+        A patch shoots about five times in a converging solve, and its row, kept by the worker
+        that computed it (:class:`~daskrad.formfactor.shooting.RowCache`), costs nothing the
+        next time there. So a patch goes back to the worker that computed its row; a patch
+        never shot (or whose worker left) goes to the worker with the fewest new rows in this
+        batch. The rows are the same bits wherever they are computed: this decides only where
+        the work runs (a soft restriction: a busy or lost worker's shots may run elsewhere).
+        """
         generation, token = self.geometry
         self._count_workers()
         ids = np.asarray(patch_ids, np.int64)
-        parts = np.array_split(ids, max(1, min(len(ids), self.workers)))
-        futures = [
-            self.client.submit(worker.shoot_task, self.store.path, generation, token, part,
-                               key=f"formfactor-{generation}-{batch_no}-{n}-{self.run}",
-                               pure=False)
-            for n, part in enumerate(parts)]
+        addresses = self.addresses or [None]
+        new_rows = dict.fromkeys(addresses, 0)
+        groups: dict = {a: [] for a in addresses}
+        for k, p in enumerate(ids.tolist()):
+            a = self.owner.get(p)
+            if a not in new_rows:
+                a = min(addresses, key=lambda w: new_rows[w])   # first of the least loaded
+                new_rows[a] += 1
+                self.owner[p] = a
+            groups[a].append(k)
+        futures, order = [], []
+        for n, a in enumerate(addresses):
+            if not groups[a]:
+                continue
+            futures.append(self.client.submit(
+                worker.shoot_task, self.store.path, generation, token, ids[groups[a]],
+                key=f"formfactor-{generation}-{batch_no}-{n}-{self.run}", pure=False,
+                workers=None if a is None else [a], allow_other_workers=True))
+            order.extend(groups[a])
         self.stats["tasks"] += len(futures)
-        return _Batch(futures, self.stats)
+        return _Batch(futures, self.stats, order)
 
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
         generation = self.geometry[0] if self.geometry else 0
@@ -149,7 +180,8 @@ class DaskExecutor:
         ``COUNT_SECONDS``. Only how a batch is split depends on it, never the result."""
         now = time.monotonic()
         if now - self._counted >= COUNT_SECONDS:
-            self.workers = len(self.client.scheduler_info(n_workers=-1)["workers"])
+            self.addresses = sorted(self.client.scheduler_info(n_workers=-1)["workers"])
+            self.workers = len(self.addresses)
             self._counted = now
 
     def _probe(self, kind: str, token: str) -> None:
