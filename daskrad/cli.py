@@ -77,6 +77,8 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     info = commands.add_parser("info", help="load a scene and report its hierarchy and grid")
     info.add_argument("scene", help="OBJ (with MTL), PLY, STL, glTF or GLB file")
     info.add_argument("--config", help="TOML sidecar (default: SCENE with .toml suffix, if any)")
+    info.add_argument("--camera", metavar="NAME", help="glTF: the camera to look through "
+                                                       "(default: the file's first)")
     info.add_argument("--patch-size", type=_positive_float,
                       help="max patch edge, scene units (default: from the scene's size)")
     info.add_argument("--element-size", type=_positive_float,
@@ -88,6 +90,8 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
                                             "store OUT.zarr go beside it (default: SCENE stem "
                                             "+ .exr in the current directory)")
     run.add_argument("--config", help="TOML sidecar (default: SCENE with .toml suffix, if any)")
+    run.add_argument("--camera", metavar="NAME", help="glTF: the camera to look through "
+                                                      "(default: the file's first)")
     where = run.add_mutually_exclusive_group()
     where.add_argument("--workers", type=_nonneg_int,
                        help="local worker processes (0: in-process; default: in-process below "

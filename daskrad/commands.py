@@ -29,7 +29,7 @@ def run_command(args) -> None:
     output = args.output or str(Path(args.scene).with_suffix(".exr").name)
     try:
         run(args.scene, output, settings, progress=not args.quiet, config=args.config,
-            resume=args.resume)
+            resume=args.resume, camera=args.camera)
     except SystemError as err:
         # Ctrl-C inside a numba kernel surfaces as "SystemError: ... returned a result with
         # an exception set" chained to the KeyboardInterrupt: report it as the interrupt
@@ -43,7 +43,7 @@ def run_command(args) -> None:
 
 def info_text(args) -> str:
     """``daskrad info``: the hierarchy, emitters and lights, bounding box and grid size."""
-    scene = load_scene(args.scene, args.config)
+    scene = load_scene(args.scene, args.config, args.camera)
     settings = Settings(patch_size=args.patch_size, element_size=args.element_size).validate()
     mesh = preprocess(scene, settings)
     h, grid, tris = mesh.hierarchy, mesh.grid, mesh.triangles

@@ -34,21 +34,23 @@ from daskrad.settings import Settings
 
 
 def run(scene_path: str | Path, out: str | Path, settings: Settings, progress: bool = True,
-        config: str | Path | None = None, resume: bool = False, executor=None) -> dict:
+        config: str | Path | None = None, resume: bool = False, executor=None,
+        camera: str | None = None) -> dict:
     """Solve and render ``scene_path``; write ``out`` (.exr), .png, .json and the solution
     store .zarr beside it. ``resume``: continue from the store's last checkpoint;
-    ``executor``: run on this one (left open) instead of the settings' choice.
+    ``executor``: run on this one instead of the settings' choice; ``camera``: the glTF camera
+    to look through.
     Returns the run report (also written as JSON)."""
     outputs = output.Outputs.of(out, resume)
     settings.validate()
     with outputs.lock():
-        return _run(scene_path, outputs, settings, progress, config, resume, executor)
+        return _run(scene_path, outputs, settings, progress, config, resume, executor, camera)
 
 
-def _run(scene_path, outputs, settings, progress, config, resume, executor) -> dict:
+def _run(scene_path, outputs, settings, progress, config, resume, executor, camera) -> dict:
     seconds: dict[str, float] = {}
     t = start = time.perf_counter()
-    scene = load_scene(scene_path, config)                                         # 1
+    scene = load_scene(scene_path, config, camera)                                 # 1
     if settings.workers is None:
         settings = settings.replace(workers=auto_workers(scene, settings))
     mesh = preprocess(scene, settings)                                            # 1

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 
 from daskrad.errors import SceneError
-from daskrad.scene.config import read_config
-from daskrad.scene.meshfile import FORMATS, read_mesh
+from daskrad.scene.config import Config, read_config
+from daskrad.scene.meshfile import FORMATS, gltf_json, read_mesh
 from daskrad.scene.obj import read_obj
 from daskrad.scene.polygons import faces_to_polygons
-from daskrad.scene.types import Scene
+from daskrad.scene.types import DirectionalLights, PointLights, Scene
 from daskrad.scene.validate import check_vertices, scale_of, scene_from_arrays
 
 #: Suffixes :func:`load_scene` reads (case-insensitive).
@@ -25,7 +25,8 @@ def sidecar(path: str | Path) -> Path | None:
     return toml if toml.is_file() else None
 
 
-def load_scene(path: str | Path, config: str | Path | None = None) -> Scene:
+def load_scene(path: str | Path, config: str | Path | None = None,
+               camera: str | None = None) -> Scene:
     """Load and check a scene: OBJ (+MTL), PLY, STL, glTF or GLB, plus its TOML sidecar.
 
     Parameters
@@ -34,7 +35,10 @@ def load_scene(path: str | Path, config: str | Path | None = None) -> Scene:
         The mesh file; the format follows the suffix.
     config : str or Path, optional
         TOML with camera and lights; default: the file with the mesh's stem and ``.toml``
-        suffix beside it, if there is one.
+        suffix beside it, if there is one. Its camera replaces a glTF file's; its lights add
+        to the file's.
+    camera : str, optional
+        The glTF camera to look through, by name (default: the file's first).
 
     Raises
     ------
@@ -80,6 +84,10 @@ def load_scene(path: str | Path, config: str | Path | None = None) -> Scene:
         vertices, polygons, polygon_material, names, kd, ke = read_mesh(path)
         polygon_face = None
         ks, ns, mirror = None, None, None
+    if camera is not None and suffix not in (".gltf", ".glb"):
+        raise SceneError(f"--camera {camera!r}: only glTF files name their cameras", path)
+    if suffix in (".gltf", ".glb"):
+        cfg = _with_gltf(cfg, gltf_json(path), path, camera)
 
     return scene_from_arrays(
         vertices,
@@ -97,3 +105,23 @@ def load_scene(path: str | Path, config: str | Path | None = None) -> Scene:
         material_names=names,
         polygon_face=polygon_face,
     )
+
+
+def _with_gltf(cfg: Config | None, doc: dict, path: Path, name: str | None) -> Config:
+    """The sidecar's settings with a glTF file's camera and lights added (the sidecar's
+    camera wins; the lights of both are kept)."""
+    from daskrad.scene import gltf
+
+    points, directional = gltf.lights(doc, path)
+    cam = gltf.camera(doc, path, name)
+    if cfg is None:
+        return Config(str(path), cam, points, directional)
+    pl, dl = cfg.point_lights, cfg.directional_lights
+    return Config(cfg.path, cfg.camera or cam,
+                  PointLights(*(np.concatenate([np.reshape(a, (-1, 3)), np.reshape(b, (-1, 3))])
+                                for a, b in ((points.position, pl.position),
+                                             (points.intensity, pl.intensity)))),
+                  DirectionalLights(*(np.concatenate([np.reshape(a, (-1, 3)),
+                                                      np.reshape(b, (-1, 3))])
+                                      for a, b in ((directional.direction, dl.direction),
+                                                   (directional.irradiance, dl.irradiance)))))

@@ -29,7 +29,7 @@ from daskrad.scene.validate import check_vertices, scale_of
 FORMATS = {".ply": "ply", ".stl": "stl", ".gltf": "gltf", ".glb": "glb"}
 
 
-def _gltf_json(path: Path) -> dict:
+def gltf_json(path: Path) -> dict:
     """The JSON part of a .gltf or .glb file ({} if it cannot be read: trimesh decides)."""
     try:
         data = path.read_bytes()
@@ -125,7 +125,7 @@ def read_mesh(path: Path):
     finally:
         log.setLevel(level)
 
-    gltf = _gltf_materials(_gltf_json(path)) if file_type in ("gltf", "glb") else {}
+    gltf = _gltf_materials(gltf_json(path)) if file_type in ("gltf", "glb") else {}
     verts, tris, tri_mat, names, kds, kes = [], [], [], [], [], []
     keys: dict[tuple, int] = {}
     offset = 0
