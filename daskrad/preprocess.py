@@ -23,6 +23,7 @@ from daskrad.mesh import (
     build_hierarchy,
     default_sizes,
     hierarchy_triangles,
+    one_sided,
     polygon_areas,
 )
 from daskrad.scene.types import Scene
@@ -85,14 +86,16 @@ def estimated_elements(scene: Scene, settings: Settings) -> int:
     """About how many elements ``settings.element_size`` makes of ``scene`` (total area over
     the element's area; exact for squares that tile their polygons)."""
     size = settings.element_size or default_sizes(scene)[1]
-    return int(math.ceil(float(polygon_areas(scene).sum()) / size**2))
+    return int(math.ceil(float(polygon_areas(one_sided(scene)).sum()) / size**2))
 
 
 def preprocess(scene: Scene, settings: Settings) -> Mesh:
     """Mesh ``scene`` with ``settings.patch_size`` and ``settings.element_size`` (scene units;
     ``None``: from the scene's size, :func:`daskrad.mesh.default_sizes`).
 
-    Refuses (:class:`OptionError`, before any work) an element size that would make more than
+    Two-sided polygons are meshed as two one-sided ones (:func:`daskrad.mesh.one_sided`).
+    Refuses
+    (:class:`OptionError`, before any work) an element size that would make more than
     :data:`MAX_ELEMENTS` elements.
     """
     n = estimated_elements(scene, settings)

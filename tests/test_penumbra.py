@@ -218,7 +218,11 @@ def test_points_under_an_open_two_sided_shelf_are_kept_whatever_the_face_order(u
     scene = scene_from_arrays(np.array(v, float), np.array(polys), np.zeros(4, int),
                               [[0.5] * 3], [[1.0] * 3])
     h, ctx = _context(scene, patch=1.0, element=0.5)
-    assert ctx.polygon_two_sided.tolist() == [False, True, True, False]
+    # the shelf is one two-sided face, meshed as its two sides (the back appended last)
+    assert scene.two_sided.tolist() == [False, True, False]
+    shelf = np.abs(h.patch_centroid[:, 2] - 0.1) < 1e-3
+    assert ctx.polygon_two_sided[h.patch_polygon].tolist() == shelf.tolist()
+    assert len(ctx.polygon_two_sided) == 4
     floor = int(np.flatnonzero(h.patch_polygon == 0)[0])
     points, weights = shooting.shooter_points(ctx, floor)
     assert len(points) == 2 * len(shooting.SHOOTER_POINTS)

@@ -81,17 +81,18 @@ def test_zero_area_faces_are_dropped_with_a_warning():
     assert len(scene.polygons) == 24
 
 
-def test_duplicated_faces_are_dropped_with_a_warning_but_back_to_back_faces_are_kept():
+def test_duplicated_faces_are_dropped_with_a_warning_back_to_back_faces_made_two_sided():
     with pytest.warns(UserWarning, match="dropped 1 duplicated faces"):
         scene = sc.box_with(duplicate=3)
     assert len(scene.polygons) == 24
     # the same corners from another starting corner, and unwelded copies of the vertices,
-    # are the same face; the reverse winding is the other side of a two-sided surface
+    # are the same face; the reverse winding is the other side: one two-sided face (issue 16)
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0.0]])
     polys = [[0, 1, 2, 3], [2, 3, 0, 1], [0, 4, 5, 3], [3, 2, 1, 0]]
     with pytest.warns(UserWarning, match="dropped 2 duplicated faces"):
         s = scene_from_arrays(v, polys, [0, 0, 0, 0], [[0.5] * 3], [[1.0] * 3])
-    np.testing.assert_array_equal(s.polygons, [[0, 1, 2, 3], [3, 2, 1, 0]])
+    np.testing.assert_array_equal(s.polygons, [[0, 1, 2, 3]])
+    assert s.two_sided.tolist() == [True]
 
 
 def test_flipped_normal_is_a_hole_one_sided_and_creates_no_energy():

@@ -94,7 +94,8 @@ class ShootContext:
     ``elem_radius : (E,)`` are the largest distances from a centroid to the corners,
     ``polygon_sides : (Q,) int8`` where the scene lies about each polygon's plane, filled in
     lazily (:func:`daskrad.kernels.blockers.nearest_blocker`), ``polygon_two_sided : (Q,) bool``
-    (:func:`two_sided_polygons`), ``eps`` the coplanarity tolerance (a length). ``grid`` is
+    (:func:`two_sided_polygons`), ``eps`` the coplanarity tolerance and ``gap`` the distance
+    between the two sides of a two-sided face (lengths). ``grid`` is
     the voxel grid over the elements' triangles and ``tri_element : (T,) int`` the element of
     each of its triangles: the mesh's own (:class:`daskrad.preprocess.Mesh`), built once.
     """
@@ -120,6 +121,7 @@ class ShootContext:
     options: dict
     grid: Grid | None = None
     tri_element: np.ndarray | None = None
+    gap: float = 0.0
 
 
 def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None = None,
@@ -138,6 +140,7 @@ def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None =
         return np.linalg.norm(corners - centroid[:, None, :], axis=2).max(axis=1)
 
     eps = tolerances.COPLANAR * scene_diagonal(h.vertices)
+    gap = tolerances.TWO_SIDED_GAP * scene_diagonal(h.vertices)
     return ShootContext(
         vertices=h.vertices, elem_verts=h.elem_verts, elem_area=h.elem_area,
         elem_centroid=h.elem_centroid, elem_normal=h.elem_normal, elem_polygon=h.elem_polygon,
@@ -146,7 +149,7 @@ def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None =
         patch_radius=radius(h.patch_verts, h.patch_centroid),
         elem_radius=radius(h.elem_verts, h.elem_centroid),
         polygon_sides=np.full(len(h.polygon_material), UNKNOWN, np.int8),
-        polygon_two_sided=two_sided_polygons(h, eps), eps=eps,
+        polygon_two_sided=two_sided_polygons(h, eps, gap), eps=eps, gap=gap,
         method=method, resolution=resolution, options=dict(options),
         grid=grid, tri_element=np.asarray(tri_element),
     )
@@ -181,7 +184,8 @@ def occluder_distance(ctx: ShootContext, p: int) -> float:
     return nearest_blocker(ctx.vertices[real_corners(ctx.patch_verts[p])], ctx.patch_centroid[p],
                            ctx.patch_normal[p], ctx.patch_polygon[p], ctx.vertices,
                            ctx.elem_verts, ctx.elem_centroid, ctx.elem_normal, ctx.elem_radius,
-                           ctx.elem_polygon, ctx.polygon_sides, ctx.eps, GRAZING)
+                           ctx.elem_polygon, ctx.polygon_sides, ctx.eps, GRAZING,
+                           max(ctx.eps, 2.0 * ctx.gap))
 
 
 def _probes() -> np.ndarray:
@@ -230,12 +234,14 @@ def _enclosed(ctx: ShootContext, points: np.ndarray, normal: np.ndarray) -> np.n
     return back.reshape(len(points), len(dirs)).all(axis=1)
 
 
-def two_sided_polygons(h: Hierarchy, eps: float) -> np.ndarray:
-    """``(Q,) bool``: polygons with a coincident twin facing the other way (a two-sided face
-    given as two, as OBJ files do): same element bounding box and area to ``eps``, opposite
-    normals. Which of the two a ray meets first is round-off, so neither counts as a back."""
+def two_sided_polygons(h: Hierarchy, eps: float, gap: float = 0.0) -> np.ndarray:
+    """``(Q,) bool``: the two sides of a two-sided face: polygons with a twin facing the other
+    way ``gap`` behind them (:func:`daskrad.mesh.one_sided`; 0: coincident twins): the same
+    element bounding box, moved half the gap back, and area to ``eps``, opposite normals.
+    Neither counts as a back: each is the front its side sees."""
     q = len(h.polygon_material)
     corners = h.vertices[np.where(h.elem_verts < 0, h.elem_verts[:, :1], h.elem_verts)]
+    corners = corners - 0.5 * gap * h.elem_normal[:, None, :]     # both sides: the mid-plane
     lo = np.full((q, 3), np.inf)
     hi = np.full((q, 3), -np.inf)
     np.minimum.at(lo, h.elem_polygon, corners.min(axis=1))

@@ -69,7 +69,8 @@ def _folded_away(corners, normal, point, enormal, eps, grazing):
 
 @jit
 def nearest_blocker(corners, centroid, normal, polygon, vertices, elem_verts,
-                    elem_centroid, elem_normal, elem_radius, elem_polygon, sides, eps, grazing):
+                    elem_centroid, elem_normal, elem_radius, elem_polygon, sides, eps, grazing,
+                    side_eps):
     """Distance from a shooter's centroid to the nearest element that may occlude some receiver
     from some point of the shooter (``inf`` when none can), less that element's radius.
 
@@ -79,7 +80,10 @@ def nearest_blocker(corners, centroid, normal, polygon, vertices, elem_verts,
     centroid-to-corner distance; ``sides : (Q,) int8`` per polygon, ``UNKNOWN`` or
     :func:`plane_sides`, filled in here as polygons are met (a pure function of the geometry:
     racing threads write the same value);
-    ``eps`` a length (the scene's coplanarity tolerance). An element folded away from the
+    ``eps`` a length (the scene's coplanarity tolerance); ``side_eps >= eps`` the distance
+    within which the scene counts as lying in an element's plane (:func:`plane_sides`: the back
+    of a two-sided face, a small gap behind its front, is not "scene behind" the front). An
+    element folded away from the
     shooter by less than ``asin(√grazing)`` (:func:`_folded_away`) hides only directions that
     carry less than ``grazing`` of a cosine-weighted hemisphere and is not counted.
     """
@@ -119,7 +123,7 @@ def nearest_blocker(corners, centroid, normal, polygon, vertices, elem_verts,
             continue                               # coplanar with the shooter
         g = elem_polygon[j]
         if sides[g] == UNKNOWN:
-            sides[g] = plane_sides(vertices, elem_centroid[j], elem_normal[j], eps)
+            sides[g] = plane_sides(vertices, elem_centroid[j], elem_normal[j], side_eps)
         if (hi > eps and sides[g] & BEHIND) or (lo < -eps and sides[g] & FRONT):
             best = max(dist, 0.0)
     return best

@@ -15,9 +15,11 @@ and patches to their polygon at every level.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
+from daskrad import tolerances
 from daskrad.errors import OptionError, SceneError
 from daskrad.kernels.subdivide import subdivide_quads, subdivide_triangles
 from daskrad.mesh.types import Hierarchy
@@ -90,6 +92,36 @@ def _corners(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(scene.vertices, dtype=np.float64)[repeat_third(poly)], quad_mask(poly)
 
 
+def one_sided(scene: Scene) -> Scene:
+    """``scene`` with every two-sided polygon as two one-sided ones: the front as it is and a
+    reversed copy with the back's material :data:`~daskrad.tolerances.TWO_SIDED_GAP` × the
+    diagonal behind it (its own vertices, welded where backs of one surface meet). Every
+    later step (shadow rays, item buffers, shooting, the renderer) sees one-sided faces only,
+    and the two sides of a surface never share a depth."""
+    back = scene.back_material
+    if back is None or not (back >= 0).any():
+        return scene
+    ids = np.flatnonzero(back >= 0)
+    poly = scene.polygons[ids]
+    quad = poly[:, 3] >= 0
+    p = scene.vertices[np.where(poly >= 0, poly, poly[:, :1])]           # (k, 4, 3)
+    n = np.where(quad[:, None], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1]),
+                 np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    moved = p - tolerances.TWO_SIDED_GAP * scene.diagonal * n[:, None, :]
+    used = poly >= 0
+    welded, inverse = np.unique(moved[used] + 0.0, axis=0, return_inverse=True)
+    twin = np.full(poly.shape, -1, np.int64)
+    twin[used] = len(scene.vertices) + inverse.reshape(-1)
+    # reversed winding, the first corner kept: (a, b, c, d) → (a, d, c, b), (a, b, c) → (a, c, b)
+    twin = np.where(quad[:, None], twin[:, [0, 3, 2, 1]], twin[:, [0, 2, 1, 3]])
+    return replace(
+        scene, vertices=np.concatenate([scene.vertices, welded]),
+        polygons=np.concatenate([scene.polygons, twin]).astype(np.int32),
+        polygon_material=np.concatenate([scene.polygon_material, back[ids]]).astype(np.int32),
+        back_material=None)
+
+
 def build_hierarchy(scene: Scene, patch_size: float | None = None,
                     element_size: float | None = None) -> Hierarchy:
     """Split every polygon into patches of edge ≤ ``patch_size`` and those into elements of
@@ -102,11 +134,15 @@ def build_hierarchy(scene: Scene, patch_size: float | None = None,
     patches of ``ke²`` elements. Elements keep the polygon's winding; their normal is the
     polygon's (bit for bit), their centroid the area-weighted one.
 
+    Two-sided polygons are meshed as two one-sided ones (:func:`one_sided`): the hierarchy's
+    polygons are the scene's followed by the backs.
+
     Returns
     -------
     Hierarchy
         Patches in polygon order, the elements of each patch contiguous.
     """
+    scene = one_sided(scene)
     if patch_size is None or element_size is None:
         dp, de = default_sizes(scene)
         patch_size = dp if patch_size is None else patch_size

@@ -118,6 +118,9 @@ class Scene:
         Where the file's coordinates had the scene's centre: ``vertices``, point lights and the
         camera are relative to it (:func:`daskrad.scene.validate.centre_of`); 0 for a scene
         near the world's origin.
+    back_material : (Q,) int32 or None
+        The material of each polygon's back, ``-1`` for a one-sided polygon (light leaves and
+        arrives on its normal's side only, the default). ``None``: every polygon one-sided.
     """
 
     path: str
@@ -130,6 +133,14 @@ class Scene:
     camera: Camera | None = None
     dropped_degenerate: int = 0
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    back_material: np.ndarray | None = None
+
+    @property
+    def two_sided(self) -> np.ndarray:
+        """``(Q,) bool``: polygons that are lit and light on both sides."""
+        if self.back_material is None:
+            return np.zeros(len(self.polygons), bool)
+        return self.back_material >= 0
 
     @property
     def bounds(self) -> np.ndarray:

@@ -84,6 +84,38 @@ def duplicated_polygons(vertices: np.ndarray, polygons: np.ndarray) -> np.ndarra
     return repeated
 
 
+def reversed_twins(vertices: np.ndarray, polygons: np.ndarray) -> np.ndarray:
+    """``(Q,) int64``: for each polygon, the earlier polygon it is the back of (the same corner
+    positions in the reversed cyclic order: one two-sided surface given as two faces, as OBJ
+    files and converters write it), else ``-1``."""
+    _, vid = np.unique(vertices + 0.0, axis=0, return_inverse=True)
+    vid = vid.reshape(-1)
+    ids = np.where(polygons >= 0, vid[np.maximum(polygons, 0)], -1).astype(np.int64)
+    n = np.where(polygons[:, 3] >= 0, 4, 3)
+    big = np.iinfo(np.int64).max
+
+    def canonical(rows):
+        start = np.argmin(np.where(rows >= 0, rows, big), axis=1)
+        out = np.take_along_axis(rows, (start[:, None] + np.arange(4)) % n[:, None], axis=1)
+        out[n == 3, 3] = -1
+        return out
+
+    forward = canonical(ids)
+    backward = ids.copy()                  # the same corners walked the other way
+    backward[n == 4] = ids[n == 4][:, ::-1]
+    backward[n == 3, :3] = ids[n == 3][:, 2::-1]
+    backward = canonical(backward)
+    first: dict[bytes, int] = {}
+    for i, row in enumerate(forward):
+        first.setdefault(row.tobytes(), i)
+    out = np.full(len(polygons), -1, np.int64)
+    for i, row in enumerate(backward):
+        j = first.get(row.tobytes(), -1)
+        if 0 <= j < i and out[j] < 0:     # each front takes one back, the first after it
+            out[i] = j
+    return out
+
+
 def _refuse_coplanar_overlaps(v, poly, origin, diag, path: str) -> None:
     """One line naming the first pair of faces (1-based, in file order) that z-fight."""
     pairs = coplanar_overlaps(v, poly, diag)
@@ -157,6 +189,7 @@ def scene_from_arrays(
     path: str = "<arrays>",
     material_names=None,
     polygon_face=None,
+    two_sided=None,
 ) -> Scene:
     """Build a :class:`Scene` from arrays, with every check :func:`load_scene` makes.
 
@@ -181,12 +214,16 @@ def scene_from_arrays(
     polygon_face : (Q,) int, optional
         The input face (0-based, in file order) each polygon came from, for messages;
         default: the polygon's own row.
+    two_sided : (M,) bool, optional
+        Materials whose faces are two-sided (light leaves and arrives on both sides, with the
+        same material); default: none (MGF's ``sides 2`` is the default of that format).
 
     Zero-area polygons (below ``DEGENERATE_AREA * diag²``) are dropped with a warning and
     counted in ``Scene.dropped_degenerate``. A polygon that repeats an earlier one (the same
     corner positions in the same cyclic order) is dropped with a warning: two coincident
     copies would both shoot their emission and split what they receive (issue 7).
-    Back-to-back copies (the opposite winding, a two-sided surface) are kept.
+    Back-to-back copies (the opposite winding at the same place) are one two-sided face: the
+    first is kept with the second's material for its back (``Scene.back_material``).
     Two faces that lie in one plane, face the same way and overlap (beyond sharing an edge)
     are refused, naming both faces: they z-fight (:mod:`daskrad.scene.overlap`).
     A scene with no emitting polygon and no light with
@@ -287,6 +324,18 @@ def scene_from_arrays(
         warnings.warn(f"{path}: dropped {int(repeated.sum())} duplicated faces (same corners "
                       "and winding as an earlier face; the first is kept)", stacklevel=2)
         poly, pm, origin = poly[~repeated], pm[~repeated], origin[~repeated]
+    # a face and its reverse at the same place are one two-sided surface: keep the front, its
+    # material and the back's (issue 16: coincident twins fight in the item buffer and rays)
+    sides2 = np.zeros(m, bool) if two_sided is None else np.asarray(two_sided, bool).reshape(m)
+    back = np.where(sides2[pm], pm, -1).astype(np.int64)
+    twin_of = reversed_twins(v, poly)
+    twins = twin_of >= 0
+    if twins.any():
+        back[twin_of[twins]] = pm[twins]
+        keep = ~twins
+        poly, pm, origin, back = poly[keep], pm[keep], origin[keep], back[keep]
+        warnings.warn(f"{path}: {int(twins.sum())} pairs of coincident back-to-back faces "
+                      "made two-sided faces", stacklevel=2)
     _refuse_coplanar_overlaps(v, poly, origin, diag, path)
 
     emits = (ke[pm] > 0).any()
@@ -309,4 +358,5 @@ def scene_from_arrays(
         camera=camera,
         dropped_degenerate=dropped,
         origin=shift,
+        back_material=np.ascontiguousarray(back, dtype=np.int32),
     )
