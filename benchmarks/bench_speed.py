@@ -134,7 +134,7 @@ def time_vs_error(scene: Path, ref: np.ndarray, configs: dict, spps: tuple) -> l
     path_trace(loaded, dataclasses.replace(cam, width=8, height=8), spp=1, seed=7)  # compile
     for spp in spps:
         best, img = None, None
-        for _ in range(REPEATS):
+        for _ in range(REPEATS if spp < 256 else 1):      # long ones once: noise is small there
             t = time.perf_counter()
             img = path_trace(loaded, cam, spp=spp, seed=7)
             seconds = time.perf_counter() - t
