@@ -29,7 +29,15 @@ $(NUMBA_STAMP): $(KERNELS) $(STAMP)
 	find daskrad -name '*.nbi' -delete -o -name '*.nbc' -delete
 	touch $@
 
-install: $(STAMP) ## create .venv and install daskrad (editable) with test tools
+# Compile every numba kernel into its on-disk cache once (daskrad warmup: ~40 s of CPU), so the
+# first run after an install or a kernel edit is not a silent compile; it runs again after
+# $(NUMBA_STAMP) dropped the cache.
+WARM_STAMP := $(VENV)/.warm
+$(WARM_STAMP): $(NUMBA_STAMP)
+	$(BIN)/daskrad warmup
+	touch $@
+
+install: $(STAMP) $(WARM_STAMP) ## create .venv, install daskrad (editable) with test tools, compile
 
 test: $(NUMBA_STAMP) ## run the test suite (fast cases; the long stress cases are `make stress`)
 	$(BIN)/python -m pytest -q -m "not slow"
@@ -38,14 +46,14 @@ lint: $(STAMP) ## ruff and the import-linter layering contracts
 	$(BIN)/ruff check daskrad tests benchmarks
 	$(BIN)/lint-imports
 
-bench: $(NUMBA_STAMP) ## run the benchmarks; tables on stdout, JSON in benchmarks/results/
+bench: $(WARM_STAMP) ## run the benchmarks; tables on stdout, JSON in benchmarks/results/
 	$(BIN)/python -m benchmarks
 
 stress: $(NUMBA_STAMP) ## the numerical stress suite (long cases included) and its report table
 	$(BIN)/python -m pytest -q tests/test_stress.py
 	$(BIN)/python -m benchmarks.bench_stress
 
-run: $(NUMBA_STAMP) ## render the bundled Cornell box (SCENE=, OUT=, WORKERS=N to change)
+run: $(WARM_STAMP) ## render the bundled Cornell box (SCENE=, OUT=, WORKERS=N to change)
 	mkdir -p $(dir $(OUT))
 	$(BIN)/daskrad run $(SCENE) -o $(OUT) $(if $(WORKERS),--workers $(WORKERS))
 

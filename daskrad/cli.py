@@ -84,6 +84,9 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     info.add_argument("--element-size", type=_positive_float,
                       help="max element edge (default: from the scene's size)")
 
+    commands.add_parser("warmup", help="compile the numba kernels into their on-disk cache "
+                                       "(make install does it; a run compiles them otherwise)")
+
     run = commands.add_parser("run", help="solve and render a scene")
     run.add_argument("scene", help="OBJ (with MTL), PLY, STL, glTF or GLB file")
     run.add_argument("-o", "--output", help="output image OUT.exr; OUT.png, OUT.json and the "
@@ -156,6 +159,8 @@ def main(argv: list[str] | None = None) -> int:
                 print(subcommands.info_text(args))
             elif args.command == "run":
                 subcommands.run_command(args)
+            elif args.command == "warmup":
+                subcommands.warmup_command()
     except DaskradError as err:
         sys.stderr.write(f"daskrad: error: {err.line()}\n")
         return 2

@@ -5,9 +5,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from daskrad.mesh import default_sizes
-from daskrad.preprocess import preprocess
-from daskrad.run import interrupted, run
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
 
@@ -25,8 +22,20 @@ def settings_from_args(args) -> Settings:
 
 
 def run_command(args) -> None:
+    from daskrad import warmup
+    from daskrad.run import interrupted, run
+
     settings = settings_from_args(args)
     output = args.output or str(Path(args.scene).with_suffix(".exr").name)
+    if not warmup.is_warm():
+        # bad input is still one line and exit 2, before any compiling is announced
+        from daskrad.output import Outputs
+
+        settings.validate()
+        Outputs.of(output)
+        load_scene(args.scene, args.config, args.camera)
+        warmup.announce()
+        warmup.warmup(verbose=False)
     try:
         run(args.scene, output, settings, progress=not args.quiet, config=args.config,
             resume=args.resume, camera=args.camera)
@@ -41,8 +50,18 @@ def run_command(args) -> None:
           f"store {out.with_suffix('.zarr')}")
 
 
+def warmup_command() -> None:
+    """``daskrad warmup``: compile every kernel into numba's on-disk cache."""
+    from daskrad import warmup
+
+    warmup.warmup(verbose=True)
+
+
 def info_text(args) -> str:
     """``daskrad info``: the hierarchy, emitters and lights, bounding box and grid size."""
+    from daskrad.mesh import default_sizes
+    from daskrad.preprocess import preprocess
+
     scene = load_scene(args.scene, args.config, args.camera)
     settings = Settings(patch_size=args.patch_size, element_size=args.element_size).validate()
     mesh = preprocess(scene, settings)

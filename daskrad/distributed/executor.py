@@ -6,22 +6,37 @@ Both executors expose the same calls, so the pipeline is written once:
 - ``shots(batch_no, patch_ids)`` → handle with ``.result()`` = rows of
   :func:`daskrad.formfactor.shooting.shoot_rows`;
 - ``tiles(render_ctx, tiles)`` → list of tile images of :func:`daskrad.render.render_tile`;
+- ``direct(ctx, ranges)`` → list of direct irradiances of
+  :func:`daskrad.direct.direct_vertices`, one per vertex range, in order;
 - ``publish(key, value)``: progress for the dashboard (a no-op here);
 - ``close()``.
 
-The Dask executor (:mod:`daskrad.distributed.dask_executor`) also has ``direct(ctx, ranges)``;
-:func:`daskrad.direct.compute` runs the batches in-process when an executor lacks it.
-
-:class:`InProcess` runs every task at once in this process (``--workers 0``; tiny scenes need no
-cluster: starting one costs seconds).
+:class:`InProcess` runs the tasks in this process (``--workers 0``; tiny scenes need no
+cluster: starting one costs seconds), on a pool of threads, one per core by default: the
+kernels release the GIL (``nogil``), so a batch's shooters, the image's tiles and the
+direct-light vertex ranges run side by side (issue 12, item 1). Every task is a pure function
+of its context and its ids, and the results are handed back in submission order, so the bits do
+not depend on the number of threads.
 """
 
 from __future__ import annotations
 
+import os
+import threading
+from concurrent.futures import Future, ThreadPoolExecutor
+
 import numpy as np
 
-from daskrad import render
+from daskrad import direct, render
 from daskrad.formfactor import shooting
+
+
+def default_threads() -> int:
+    """The cores this process may run on (its CPU affinity, else the machine's count)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):            # not on Linux
+        return max(1, os.cpu_count() or 1)
 
 
 class _Done:
@@ -36,28 +51,75 @@ class _Done:
         return self.value
 
 
+class _Rows:
+    """A batch's rows as futures of the thread pool; ``result()`` joins them in shooter
+    order (like :class:`daskrad.distributed.dask_executor._Batch`)."""
+
+    __slots__ = ("futures",)
+
+    def __init__(self, futures: list[Future]):
+        self.futures = futures
+
+    def result(self) -> list:
+        return [f.result()[0] for f in self.futures]
+
+
 class InProcess:
-    """Runs tasks in the calling process with the same functions the workers run."""
+    """Runs tasks in the calling process with the same functions the workers run.
+
+    ``threads``: how many tasks run at once (default :func:`default_threads`, every core this
+    process may use); 1 runs each task in the caller's thread as it is submitted.
+    """
 
     workers = 0
     dashboard_link = None
 
-    def __init__(self, shoot_ctx: shooting.ShootContext | None = None):
+    def __init__(self, shoot_ctx: shooting.ShootContext | None = None,
+                 threads: int | None = None):
         self.shoot_ctx = shoot_ctx
         self.rows = shooting.RowCache()
+        self.threads = default_threads() if threads is None else max(1, int(threads))
+        self._pool: ThreadPoolExecutor | None = None
+        self._lock = threading.Lock()
 
     def set_geometry(self, shoot_ctx: shooting.ShootContext, generation: int = 0) -> None:
         self.shoot_ctx = shoot_ctx
         self.rows = shooting.RowCache()
 
-    def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Done:
-        return _Done(shooting.shoot_rows(self.shoot_ctx, patch_ids, self.rows))
+    def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Done | _Rows:
+        if self.threads == 1:
+            return _Done(shooting.shoot_rows(self.shoot_ctx, patch_ids, self.rows))
+        # one task per shooter: a batch of 8 keeps every core busy, and the solve submits the
+        # next batch before it waits for this one, so the pool never runs dry between batches
+        ctx, rows = self.shoot_ctx, self.rows
+        return _Rows([self._submit(shooting.shoot_rows, ctx, [int(p)], rows)
+                      for p in np.asarray(patch_ids)])
 
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
-        return [render.render_tile(ctx, rows, cols) for rows, cols in tiles]
+        return self._map(lambda t: render.render_tile(ctx, t[0], t[1]), tiles)
+
+    def direct(self, ctx, ranges: list[tuple[int, int]]) -> list[np.ndarray]:
+        """Direct irradiance at the vertex ranges (:func:`daskrad.direct.direct_vertices`)."""
+        return self._map(lambda r: direct.direct_vertices(ctx, r[0], r[1]), ranges)
 
     def publish(self, key: str, value) -> None:
         """No dashboard in-process: progress shows in the terminal only."""
 
     def close(self) -> None:
-        pass
+        with self._lock:
+            pool, self._pool = self._pool, None
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+    # --- the pool -----------------------------------------------------------------------
+
+    def _submit(self, fn, *args) -> Future:
+        with self._lock:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix="daskrad")
+            return self._pool.submit(fn, *args)
+
+    def _map(self, fn, items: list) -> list:
+        if self.threads == 1 or len(items) < 2:
+            return [fn(item) for item in items]
+        return [f.result() for f in [self._submit(fn, item) for item in items]]

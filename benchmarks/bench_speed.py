@@ -1,0 +1,274 @@
+"""Speed (issue 12): time against error beside a path tracer, start-up, and worker counts.
+
+Four tables, one JSON (``benchmarks/results/speed.json``):
+
+1. **Time against error** on the Cornell box (and the lit room): daskrad end to end
+   (:func:`daskrad.run.run`, in-process on every core, 128×128) at several settings, beside
+   the path tracer of :mod:`daskrad.reference` at several sample counts, each against the
+   cached path-traced reference of :mod:`benchmarks.bench_reference` (2,048 paths per pixel;
+   the lit room's is made here once, as that one's, and cached beside it). Error: relative RMS
+   over all pixels and off the light (:func:`benchmarks.bench_reference.errors`). daskrad's
+   time is the whole run (load, mesh, direct, solve, render, store and files), its solve and
+   render apart; the path tracer's is its render (its scene setup is milliseconds).
+2. **Start-up**: ``import daskrad.cli`` and ``import daskrad.run`` (``-X importtime``, in a
+   fresh interpreter), ``daskrad --version`` and ``daskrad info`` (wall, fresh process), and
+   the cold start in an empty numba cache (``NUMBA_CACHE_DIR``): ``daskrad warmup`` (what
+   ``make install`` runs), the first run after it and a warm run (the issue's bound: first ≤ 2×
+   warm).
+3. **Workers**: a whole converging run (re-shots included) of a scene of ≥ 50k elements with
+   ``--workers 0`` (threads), 1 and 2 (LocalCluster start included): the Cornell box with
+   7-unit elements by default, or the scenes given with ``--scene PATH`` (e.g. the office
+   interiors of ``../shared/scenes/``; never commit those).
+
+``python -m benchmarks.bench_speed [--quick] [--scene PATH ...] [--no-cold]``; ``--quick`` is
+a smoke run (one setting, one sample count, no cold start, a small scene for the workers).
+Times are wall seconds, best of ``REPEATS``; on a machine shared with other work they are
+upper bounds, read them as ratios.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.bench_reference import errors
+from benchmarks.bench_reference import reference as cornell_reference
+from daskrad.io import read_exr, write_exr, write_png
+from daskrad.reference import path_trace
+from daskrad.run import run
+from daskrad.scene import load_scene
+from daskrad.settings import Settings
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = Path(__file__).parent / "results"
+CORNELL = ROOT / "scenes" / "cornell_box.obj"
+LIT_ROOM = ROOT / "scenes" / "lit_room.obj"
+SIZE = 128
+REFERENCE_SPP = 2048
+REPEATS = 2
+
+#: daskrad settings timed against their error (Settings fields; the image is SIZE × SIZE).
+CONFIGS = {
+    "default": {},
+    "R 100": {"resolution": 100},
+    "coarse elements": {"element_size": 60.0},
+    "fine elements": {"element_size": 15.0},
+    "no per-pixel pass": {"per_pixel": False},
+    "tolerance 1e-2": {"tolerance": 1e-2},
+}
+#: Path-tracer samples per pixel (seed 7: independent of the reference's seeds).
+PT_SPP = (16, 64, 256, 1024)
+#: Element size of the Cornell box for the workers table (~59,000 elements, bench_scaling).
+LARGE_ELEMENT_SIZE = 7.0
+WORKERS = (0, 1, 2)
+
+
+def _python() -> list[str]:
+    return [sys.executable]
+
+
+def _env(**extra) -> dict:
+    env = dict(os.environ, **extra)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    return env
+
+
+def lit_room_reference() -> tuple[np.ndarray, float]:
+    """The lit room's path-traced reference at SIZE² and REFERENCE_SPP (two halves, cached as
+    bench_reference caches the Cornell box's) and its relative RMS noise."""
+    path = RESULTS / f"lit_room_reference_{SIZE}.exr"
+    half_path = RESULTS / f"lit_room_reference_{SIZE}_half.exr"
+    if not path.exists() or not half_path.exists():
+        scene = load_scene(LIT_ROOM)
+        cam = dataclasses.replace(scene.camera, width=SIZE, height=SIZE)
+        a = path_trace(scene, cam, spp=REFERENCE_SPP // 2, seed=1)
+        b = path_trace(scene, cam, spp=REFERENCE_SPP // 2, seed=100_003)
+        RESULTS.mkdir(exist_ok=True)
+        write_exr(path, 0.5 * (a + b))
+        write_exr(half_path, a)
+        write_png(path.with_suffix(".png"), 0.5 * (a + b))
+    ref = read_exr(path).astype(np.float64)
+    half = read_exr(half_path).astype(np.float64)
+    noise = np.sqrt(np.mean((half - ref) ** 2)) / np.sqrt(np.mean(ref**2))
+    return ref, float(noise)
+
+
+def timed_run(scene: Path, settings: Settings, repeats: int = REPEATS) -> dict:
+    """Best-of-``repeats`` whole run of ``scene`` (fresh process state but warm kernels),
+    with the report of the fastest and its image."""
+    best = None
+    with tempfile.TemporaryDirectory(prefix="daskrad-speed-") as tmp:
+        out = Path(tmp) / "x.exr"
+        for _ in range(repeats):
+            t = time.perf_counter()
+            report = run(scene, out, settings, progress=False)
+            seconds = time.perf_counter() - t
+            if best is None or seconds < best["seconds"]:
+                best = {"seconds": seconds, "report": report,
+                        "image": read_exr(out).astype(np.float64)}
+    return best
+
+
+def time_vs_error(scene: Path, ref: np.ndarray, configs: dict, spps: tuple) -> list[dict]:
+    rows = []
+    for name, opts in configs.items():
+        r = timed_run(scene, Settings(width=SIZE, height=SIZE, workers=0, **opts))
+        rep = r["report"]
+        rows.append({"renderer": "daskrad", "config": name, "seconds": r["seconds"],
+                     "solve": rep["seconds"]["solve"], "render": rep["seconds"]["render"],
+                     "elements": rep["counts"]["elements"], "shots": rep["iterations"],
+                     **errors(r["image"], ref)})
+    loaded = load_scene(scene)
+    cam = dataclasses.replace(loaded.camera, width=SIZE, height=SIZE)
+    path_trace(loaded, dataclasses.replace(cam, width=8, height=8), spp=1, seed=7)  # compile
+    for spp in spps:
+        best, img = None, None
+        for _ in range(REPEATS if spp < 256 else 1):      # long ones once: noise is small there
+            t = time.perf_counter()
+            img = path_trace(loaded, cam, spp=spp, seed=7)
+            seconds = time.perf_counter() - t
+            best = seconds if best is None else min(best, seconds)
+        rows.append({"renderer": "path tracer", "config": f"{spp} spp", "seconds": best,
+                     **errors(img, ref)})
+    return rows
+
+
+def _import_ms(module: str) -> float:
+    """Cumulative import time of ``module`` in a fresh interpreter, milliseconds (median of 3)."""
+    times = []
+    for _ in range(3):
+        done = subprocess.run(_python() + ["-X", "importtime", "-c", f"import {module}"],
+                              capture_output=True, text=True, env=_env(), cwd=ROOT)
+        line = [ln for ln in done.stderr.splitlines() if ln.rstrip().endswith(f"| {module}")]
+        times.append(int(re.split(r"\s*\|\s*", line[-1])[1]) / 1000.0)
+    return float(np.median(times))
+
+
+def _wall(cmd: list[str], env: dict | None = None, repeats: int = 3) -> float:
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        done = subprocess.run(cmd, capture_output=True, text=True, env=env or _env(), cwd=ROOT)
+        times.append(time.perf_counter() - t)
+        if done.returncode != 0:
+            raise RuntimeError(f"{' '.join(cmd)} failed: {done.stderr}")
+    return float(np.median(times))
+
+
+def startup(cold: bool) -> dict:
+    """Import times, CLI start-up, and (``cold``) the cold start in an empty numba cache."""
+    daskrad = _python() + ["-m", "daskrad"]
+    out = {"import daskrad.cli ms": _import_ms("daskrad.cli"),
+           "import daskrad.run ms": _import_ms("daskrad.run"),
+           "daskrad --version s": _wall(daskrad + ["--version"]),
+           "daskrad info s": _wall(daskrad + ["info", str(CORNELL)])}
+    if cold:
+        with tempfile.TemporaryDirectory(prefix="daskrad-cold-") as tmp:
+            env = _env(NUMBA_CACHE_DIR=str(Path(tmp) / "numba"))
+            cmd = daskrad + ["run", str(CORNELL), "-o", str(Path(tmp) / "c.exr"), "-q"]
+            out["daskrad warmup s"] = _wall(daskrad + ["warmup"], env, repeats=1)
+            out["first run after warmup s"] = _wall(cmd, env, repeats=1)
+            out["warm run s"] = _wall(cmd, env, repeats=2)
+            shutil.rmtree(Path(tmp) / "numba")
+            out["cold run, no warmup s"] = _wall(cmd, env, repeats=1)
+        out["first / warm"] = out["first run after warmup s"] / out["warm run s"]
+    return out
+
+
+def workers(scenes: list[Path], element_size: float | None, max_iterations: int | None
+            ) -> list[dict]:
+    """Whole-run wall time of each scene with --workers 0 (threads), 1 and 2."""
+    rows = []
+    for scene in scenes:
+        for n in WORKERS:
+            opts = {"workers": n}
+            if element_size is not None:
+                opts["element_size"] = element_size
+            if max_iterations is not None:
+                opts["max_iterations"] = max_iterations
+            r = timed_run(scene, Settings(**opts), repeats=1)
+            rep = r["report"]
+            rows.append({"scene": scene.name, "workers": n, "seconds": r["seconds"],
+                         "elements": rep["counts"]["elements"], "shots": rep["iterations"],
+                         "converged": rep["converged"], **{f"{k} s": v for k, v in
+                                                          rep["seconds"].items()}})
+    for row in rows:
+        base = next(r for r in rows if r["scene"] == row["scene"] and r["workers"] == 1)
+        row["speed-up vs 1 worker"] = base["seconds"] / row["seconds"]
+    return rows
+
+
+def _print_errors(title: str, rows: list[dict], noise: float) -> None:
+    print(f"\n{title} ({SIZE}x{SIZE}; reference {REFERENCE_SPP} paths/pixel, noise {noise:.4f})")
+    print(f"{'renderer':<13}{'config':<20}{'seconds':>9}{'solve':>8}{'render':>8}"
+          f"{'rel RMS':>9}{'off light':>10}")
+    for r in rows:
+        solve = f"{r['solve']:8.2f}" if "solve" in r else f"{'':8}"
+        rend = f"{r['render']:8.2f}" if "render" in r else f"{'':8}"
+        print(f"{r['renderer']:<13}{r['config']:<20}{r['seconds']:>9.2f}{solve}{rend}"
+              f"{r['relative_rms']:>9.4f}{r['relative_rms_off_light']:>10.4f}")
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_speed")
+    parser.add_argument("--quick", action="store_true", help="a smoke run")
+    parser.add_argument("--no-cold", action="store_true", help="skip the cold start")
+    parser.add_argument("--scene", action="append", type=Path, default=[],
+                        help="scene(s) for the workers table (default: the Cornell box with "
+                             f"{LARGE_ELEMENT_SIZE}-unit elements)")
+    args = parser.parse_args([] if argv is None else argv)
+    quick = args.quick
+    configs = {"default": {}} if quick else CONFIGS
+    spps = (4,) if quick else PT_SPP
+    result: dict = {"cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                    else os.cpu_count()}
+
+    ref, noise = cornell_reference()
+    rows = time_vs_error(CORNELL, ref, configs, spps)
+    result["cornell_box"] = {"noise": noise, "rows": rows}
+    _print_errors("Cornell box: time against error", rows, noise)
+    if not quick:
+        ref, noise = lit_room_reference()
+        rows = time_vs_error(LIT_ROOM, ref, configs, spps)
+        result["lit_room"] = {"noise": noise, "rows": rows}
+        _print_errors("Lit room: time against error", rows, noise)
+
+    start = startup(cold=not (quick or args.no_cold))
+    result["startup"] = start
+    print("\nStart-up")
+    for k, v in start.items():
+        print(f"  {k:<28}{v:>9.2f}")
+
+    if quick:
+        scenes, size, cap = [CORNELL], 60.0, 64
+    else:
+        scenes = args.scene or [CORNELL]
+        size, cap = (None if args.scene else LARGE_ELEMENT_SIZE), None
+    wrows = workers(scenes, size, cap)
+    result["workers"] = wrows
+    print("\nWhole runs by --workers (0: in-process threads; LocalCluster start included)")
+    print(f"{'scene':<20}{'workers':>8}{'elements':>10}{'shots':>7}{'seconds':>9}{'direct':>8}"
+          f"{'solve':>8}{'render':>8}{'vs 1':>7}")
+    for r in wrows:
+        print(f"{r['scene']:<20}{r['workers']:>8}{r['elements']:>10}{r['shots']:>7}"
+              f"{r['seconds']:>9.2f}{r['direct s']:>8.2f}{r['solve s']:>8.2f}"
+              f"{r['render s']:>8.2f}{r['speed-up vs 1 worker']:>7.2f}")
+    if not quick:
+        RESULTS.mkdir(exist_ok=True)
+        (RESULTS / "speed.json").write_text(json.dumps(result, indent=2) + "\n")
+    return result
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

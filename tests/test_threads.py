@@ -1,0 +1,75 @@
+"""Both cores in-process (issue 12, item 1): the thread pool of :class:`InProcess` runs a
+batch's shooters, the tiles and the direct-light ranges side by side, with the same bits as one
+thread."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from daskrad import direct, render, solve
+from daskrad.distributed.executor import InProcess, default_threads
+from daskrad.preprocess import preprocess
+from daskrad.scene import load_scene
+from daskrad.settings import Settings
+from tests.conftest import SCENES
+
+#: Penumbra shooters (the blocks), re-shots from the row cache, subdivision around the lights,
+#: per-pixel pixels and a Phong-free scene; small enough for a test.
+SMALL = Settings(patch_size=150.0, element_size=75.0, resolution=64, tolerance=1e-2,
+                 width=32, height=32, spp=2, workers=0, batch=8)
+
+
+def _steps(scene_name: str, threads: int):
+    scene = load_scene(SCENES / scene_name)
+    ex = InProcess(threads=threads)
+    try:
+        light = direct.light(scene, preprocess(scene, SMALL), SMALL, ex)
+        sol = solve.radiosity(light, SMALL, ex)
+        image = render.image(scene, light, sol, SMALL, ex)
+    finally:
+        ex.close()
+    return light, sol, image
+
+
+@pytest.mark.parametrize("scene_name", ["cornell_box.obj", "lit_room.obj"])
+def test_one_and_two_threads_give_the_same_bits(scene_name):
+    one = _steps(scene_name, 1)
+    two = _steps(scene_name, 2)
+    assert one[1].iteration == two[1].iteration > 8          # several batches, re-shots
+    np.testing.assert_array_equal(one[0].irradiance, two[0].irradiance)
+    np.testing.assert_array_equal(one[1].radiosity, two[1].radiosity)
+    np.testing.assert_array_equal(one[1].unshot, two[1].unshot)
+    assert [h[:2] for h in one[1].history] == [h[:2] for h in two[1].history]
+    np.testing.assert_array_equal(one[2].pixels, two[2].pixels)
+    assert one[2].perpixel_elements > 0
+
+
+def test_rows_come_back_in_shooter_order_from_the_pool():
+    scene = load_scene(SCENES / "cornell_box.obj")
+    mesh = preprocess(scene, SMALL)
+    from daskrad.formfactor import shooting
+
+    ctx = shooting.make_context(mesh.hierarchy, "hemisphere", 32, grid=mesh.grid,
+                                tri_element=mesh.tri_element)
+    ids = np.array([5, 0, 17, 3, 9])
+    serial = shooting.shoot_rows(ctx, ids)
+    ex = InProcess(threads=3)
+    try:
+        ex.set_geometry(ctx)
+        pooled = ex.shots(0, ids).result()
+        again = ex.shots(1, ids[::-1]).result()            # from the row cache now
+    finally:
+        ex.close()
+    for (a_ids, a_f), (b_ids, b_f) in zip(serial, pooled, strict=True):
+        np.testing.assert_array_equal(a_ids, b_ids)
+        np.testing.assert_array_equal(a_f, b_f)
+    for (a_ids, a_f), (b_ids, b_f) in zip(serial[::-1], again, strict=True):
+        np.testing.assert_array_equal(a_ids, b_ids)
+        np.testing.assert_array_equal(a_f, b_f)
+    assert ex.rows.hits == len(ids)
+
+
+def test_default_is_every_core_this_process_may_use():
+    assert InProcess().threads == default_threads() >= 1
+    assert InProcess(threads=1).threads == 1
