@@ -33,7 +33,9 @@ def run_command(args) -> None:
 
         settings.validate()
         Outputs.of(output)
-        load_scene(args.scene, args.config, args.camera)
+        from daskrad.preprocess import check_size
+
+        check_size(load_scene(args.scene, args.config, args.camera), settings)
         warmup.announce()
         warmup.warmup(verbose=False)
     try:

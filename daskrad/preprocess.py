@@ -98,10 +98,16 @@ def preprocess(scene: Scene, settings: Settings) -> Mesh:
     (:class:`OptionError`, before any work) an element size that would make more than
     :data:`MAX_ELEMENTS` elements.
     """
+    check_size(scene, settings)
+    return Mesh.of(scene, build_hierarchy(scene, settings.patch_size, settings.element_size))
+
+
+def check_size(scene: Scene, settings: Settings) -> None:
+    """:class:`OptionError` if meshing ``scene`` with ``settings`` would make more than
+    :data:`MAX_ELEMENTS` elements (checked before any work or output)."""
     n = estimated_elements(scene, settings)
     if n > MAX_ELEMENTS:
         raise OptionError(f"--element-size {settings.element_size or default_sizes(scene)[1]:.4g}"
                           f" would make about {n:,} elements, more than the {MAX_ELEMENTS:,} a "
                           "run may hold; choose a larger --element-size", scene.path)
-    return Mesh.of(scene, build_hierarchy(scene, settings.patch_size, settings.element_size))
 
