@@ -51,6 +51,28 @@ COPLANAR = 1e-9
 #: the item buffer's tie-break (lower index) made it lose whole pixels (furnace error 9.4 %).
 SUBPIXEL_AREA_PX = 1.0
 
+# --- limits on magnitudes (issue 13): refused at load time, in one line, instead of an inf or
+# NaN image. float64 overflows at 1.8e308; these bounds leave room for the products the solver
+# and renderer form, so nothing inside them can overflow on the way.
+
+#: Largest accepted ``|coordinate|`` of a vertex or a point light. The direct-light kernel
+#: divides by ``r⁴`` (``cos·cos / (r²)²``); with every coordinate within ±1e75 the scene's
+#: diagonal is at most 3.5e75 and ``diag⁴`` at most 1.5e302.
+MAX_COORDINATE = 1e75
+
+#: Smallest accepted scene diagonal: lengths a billionth of the scene (the tolerances above)
+#: to the fourth power must stay normal floats (``(1e-60 · 1e-9)⁴ = 1e-276``).
+MIN_DIAGONAL = 1e-60
+
+#: Largest accepted light level, in W/m² (the file's unit of area): a material's exitance
+#: ``π·Ke``, a point light's irradiance at the scene's size ``I / diag²``, a directional
+#: light's irradiance ``E``, and their sum. Images (OpenEXR) and the store hold float32
+#: (largest 3.4e38): 1e30 leaves 1e8 for the gain of interreflections ``1 / (1 − ρ)`` and for
+#: a point light nearer to a surface than the scene's size. Squared over areas up to
+#: ``diag² ≤ 1.2e151`` (the unshot RMS) it stays below 1e212. No real scene comes near it: the
+#: sun's exitance is 6e7 W/m².
+MAX_LIGHT = 1e30
+
 #: Two coordinates closer than this, relative to the points' magnitudes, tie when the raster
 #: orders an edge's endpoints (:func:`daskrad.kernels.geometry.lex_less`: round-off must not
 #: decide which end the polyline starts from). Defined beside the kernel, which imports

@@ -117,7 +117,62 @@ CASES = {
     "garbage-glb": lambda t: (_write_bytes(t / "g.glb", b"glTF\x02\x00\x00\x00garbage"), None,
                               t / "g.glb", "GLB"),
     "garbage-gltf": lambda t: (_write(t / "g.gltf", "{not json"), None, t / "g.gltf", "GLTF"),
+    # --- issue 13: mtllib only names regular files of bounded size, relative to the scene ---
+    "mtl-fifo": lambda t: (_mtllib(t, _fifo(t / "pipe.mtl")), None, t / "pipe.mtl",
+                           "not a regular file"),
+    "mtl-dev-zero": lambda t: (_mtllib(t, "/dev/zero"), None, "/dev/zero", "not a regular file"),
+    "mtl-directory": lambda t: ((t / "lib.mtl").mkdir() or _mtllib(t, "lib.mtl"), None,
+                                t / "lib.mtl", "directory"),
+    "mtl-too-large": lambda t: (_mtllib(t, _sparse(t / "huge.mtl", (64 << 20) + 1)), None,
+                                t / "huge.mtl", "too large"),
+    "mtl-not-a-library": lambda t: (_mtllib(t, _write(t / "notes.txt", "root:x:0:0\n").name),
+                                    None, t / "notes.txt", "not a material library"),
+    "mtl-missing": lambda t: (_mtllib(t, "gone.mtl"), None, t / "gone.mtl", "not found"),
+    "scene-fifo": lambda t: (_fifo(t / "s.obj") and t / "s.obj", None, t / "s.obj",
+                             "not a regular file"),
+    # --- issue 13: indices and magnitudes that overflow ---
+    "index-overflow": lambda t: (_obj(t, TRI + "f 1 2 99999999999999999999999\n"), None,
+                                 t / "s.obj", "line 6: vertex index 99999999999999999999999 is "
+                                 "out of range (3 vertices)"),
+    "ply-index-past-vertices": lambda t: (_write(t / "p.ply", PLY_HEAD + "0 0 0\n1 0 0\n0 1 0\n"
+                                                 "3 0 1 7\n"), None, t / "p.ply",
+                                          "vertex index 7 is out of range (3 vertices)"),
+    "coordinates-1e308": lambda t: (_obj(t, "v 0 0 0\nv 1e308 0 0\nv 0 1e308 0\n"
+                                         "v -1e308 -1e308 0\nf 1 2 3\nf 1 3 4\n"), None,
+                                    t / "s.obj", "beyond ±1e+75"),
+    "ke-1e308": lambda t: (_obj(t, TRI + "f 1 2 3\n", "newmtl lamp\nKd 0.5 0.5 0.5\n"
+                                "Ke 1e308 1 1\n"), None, t / "s.obj", "Ke R = 1e+308 is out "
+                           "of range"),
+    "point-light-1e308": lambda t: (_toml(t, '[[light]]\ntype = "point"\nposition = [0, 0, 1]\n'
+                                          "intensity = [1, 1e308, 1]\n"), None, t / "s.obj",
+                                    "point light 1: intensity G = 1e+308 is out of range"),
+    "point-light-1e200": lambda t: (_toml(t, '[[light]]\ntype = "point"\nposition = [0, 0, 1]\n'
+                                          "intensity = [1e200, 1, 1]\n"), None, t / "s.obj",
+                                    "point light 1: intensity R = 1e+200 is out of range"),
+    "directional-1e308": lambda t: (_toml(t, '[[light]]\ntype = "directional"\n'
+                                          "direction = [0, 0, -1]\nirradiance = [1e308, 1, 1]\n"),
+                                    None, t / "s.obj", "irradiance R = 1e+308 is out of range"),
 }
+
+PLY_HEAD = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+            "end_header\n")
+
+
+def _mtllib(tmp: Path, name: str) -> Path:
+    """``s.obj`` whose ``mtllib`` line names ``name`` (as written, relative to ``tmp``)."""
+    return _write(tmp / "s.obj", f"mtllib {name}\nusemtl lamp\n" + TRI + "f 1 2 3\n")
+
+
+def _fifo(path: Path) -> str:
+    os.mkfifo(path)
+    return path.name
+
+
+def _sparse(path: Path, size: int) -> str:
+    with open(path, "wb") as f:
+        f.truncate(size)  # no disk used: a hole
+    return path.name
 
 
 def _write(path: Path, text: str) -> Path:
@@ -136,7 +191,7 @@ def test_bad_input_is_a_scene_error_naming_the_file(tmp_path, case):
     with pytest.raises(SceneError) as info:
         load_scene(path, config)
     err = info.value
-    assert err.path == str(named)
+    assert err.path == str(named), err.line()
     assert str(named) in err.line()
     assert fragment in err.line()
     assert "\n" not in err.line()
@@ -189,7 +244,12 @@ def test_point_light_alone_is_enough():
 
 # The CLI contract (DESIGN §7): exit code 2, exactly one line on stderr, no traceback.
 CLI_CASES = ["missing", "unknown-format", "nan", "kd-one", "no-light", "toml-malformed",
-             "garbage-ply"]
+             "garbage-ply",
+             # issue 13: each of these hung, grew without bound, printed a traceback or numpy
+             # RuntimeWarnings before the line, or rendered an inf/NaN image with exit 0
+             "mtl-fifo", "mtl-dev-zero", "mtl-too-large", "mtl-not-a-library", "scene-fifo",
+             "index-overflow", "ply-index-past-vertices", "coordinates-1e308", "ke-1e308",
+             "point-light-1e308", "point-light-1e200"]
 
 
 @pytest.mark.parametrize("case", CLI_CASES)
@@ -200,6 +260,7 @@ def test_cli_info_refuses_bad_input_in_one_line(tmp_path, case):
         args += ["--config", str(config)]
     proc = subprocess.run(args, capture_output=True, text=True, cwd=REPO, timeout=120)
     assert proc.returncode == 2, proc.stderr
+    assert proc.stdout == ""
     lines = proc.stderr.splitlines()
     assert len(lines) == 1, proc.stderr
     assert "Traceback" not in proc.stderr
@@ -259,3 +320,33 @@ def test_coplanar_overlap_far_from_the_origin_and_at_any_scale():
         lifted[4:, 2] += 1e-6 * 3.6 * scale
         scene_from_arrays(lifted, [[0, 1, 2, 3], [4, 5, 6, 7]], [0, 0], [[0.5] * 3],
                           [[1.0] * 3])
+
+
+def test_mtllib_is_resolved_against_the_scene_folder_not_the_working_directory(tmp_path,
+                                                                              monkeypatch):
+    # the OBJ in scene/ names "mats/lib.mtl" and "../shared.mtl"; a decoy "mats/lib.mtl" in the
+    # working directory must not be read
+    (tmp_path / "scene" / "mats").mkdir(parents=True)
+    (tmp_path / "scene" / "mats" / "lib.mtl").write_text("newmtl lamp\nKd 0.25 0.5 0.125\n"
+                                                         "Ke 1 1 1\n")
+    (tmp_path / "shared.mtl").write_text("newmtl wall\nKd 0.5 0.5 0.5\n")
+    (tmp_path / "cwd" / "mats").mkdir(parents=True)
+    (tmp_path / "cwd" / "mats" / "lib.mtl").write_text("newmtl lamp\nKd 0.9 0.9 0.9\n")
+    obj = tmp_path / "scene" / "s.obj"
+    obj.write_text("mtllib mats/lib.mtl\nmtllib ../shared.mtl\nusemtl lamp\n" + TRI
+                   + "f 1 2 3\nusemtl wall\nv 0 0 1\nf 1 3 4\n")
+    monkeypatch.chdir(tmp_path / "cwd")
+    scene = load_scene(Path("..") / "scene" / "s.obj")
+    np.testing.assert_array_equal(scene.materials.diffuse, [[0.25, 0.5, 0.125], [0.5] * 3])
+
+
+def test_largest_accepted_magnitudes_load_without_warnings(tmp_path):
+    # just inside the limits (coordinates 1e74, Ke 1e29): accepted, and no numpy warning
+    import warnings
+
+    path = _obj(tmp_path, "v 0 0 0\nv 1e74 0 0\nv 0 1e74 0\nf 1 2 3\n",
+                "newmtl lamp\nKd 0.5 0.5 0.5\nKe 1e29 1 1\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        scene = load_scene(path)
+    assert scene.diagonal == pytest.approx(np.sqrt(2) * 1e74)

@@ -48,6 +48,8 @@ def load_scene(path: str | Path, config: str | Path | None = None) -> Scene:
         raise SceneError("no such file", path)
     if path.is_dir():
         raise SceneError("is a directory, not a scene file", path)
+    if not path.is_file():  # a FIFO or a device: reading it hangs or never ends
+        raise SceneError("is not a regular file (a device, FIFO or socket)", path)
     suffix = path.suffix.lower()
     if suffix not in SUFFIXES:
         raise SceneError(

@@ -32,6 +32,15 @@ def check_vertices(vertices, path: str) -> np.ndarray:
             f"(first: vertex {i + 1} = {v[i].tolist()})",
             path,
         )
+    far = ~(np.abs(v) <= tolerances.MAX_COORDINATE).all(axis=1)
+    if far.any():
+        i = int(np.flatnonzero(far)[0])
+        raise SceneError(
+            f"{int(far.sum())} vertices have coordinates beyond ±{tolerances.MAX_COORDINATE:g}, "
+            f"where lengths to the fourth power overflow (first: vertex {i + 1} = "
+            f"{v[i].tolist()})",
+            path,
+        )
     return v
 
 
@@ -77,6 +86,46 @@ def _refuse_coplanar_overlaps(v, poly, origin, diag, path: str) -> None:
         f"z-fight{more}: remove one, cut it out of the other, or lift it off the plane",
         path,
     )
+
+
+def _check_magnitudes(pm, ke, names, points, directional, diag, path: str) -> None:
+    """Refuse light levels beyond ``tolerances.MAX_LIGHT`` and point lights beyond
+    ``tolerances.MAX_COORDINATE``: nothing the solver and the outputs form can overflow.
+
+    ``pm : (Q,)`` polygon materials, ``ke : (M, 3)`` radiance, ``diag`` the scene's scale.
+    Products are formed with overflow allowed (an inf compares as too large) so that no numpy
+    warning is printed before the one line.
+    """
+    limit = tolerances.MAX_LIGHT
+    far = ~(np.abs(points.position) <= tolerances.MAX_COORDINATE).all(axis=1)
+    if far.any():
+        i = int(np.flatnonzero(far)[0])
+        raise SceneError(f"point light {i + 1} at {points.position[i].tolist()} lies beyond "
+                         f"±{tolerances.MAX_COORDINATE:g}", path)
+    used = np.zeros(len(ke), bool)
+    used[pm] = True
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        tables = (
+            (np.where(used[:, None], np.pi * ke, 0.0), "material {name!r}: Ke", ke,
+             "exitance π·Ke"),
+            (points.intensity / diag**2, "point light {i}: intensity", points.intensity,
+             "its irradiance at the scene's size, intensity/diagonal²,"),
+            (directional.irradiance, "directional light {i}: irradiance",
+             directional.irradiance, "irradiance"),
+        )
+        total = sum(float(t.sum()) for t, *_ in tables)
+    for scale, what, value, formula in tables:
+        bad = ~(scale <= limit)
+        if bad.any():
+            row, ch = np.argwhere(bad)[0]
+            what = what.format(name=names[row] if len(names) > row else "", i=row + 1)
+            raise SceneError(
+                f"{what} {'RGB'[ch]} = {value[row, ch]:.3g} is out of range: {formula} "
+                f"{scale[row, ch]:.3g} W/m² is beyond {limit:g} (images and the store hold "
+                "float32)", path)
+    if not total <= limit:
+        raise SceneError(f"the lights together are out of range: {total:.3g} W/m² is beyond "
+                         f"{limit:g} (images and the store hold float32)", path)
 
 
 def _rgb_table(values, m: int, name: str, path: str) -> np.ndarray:
@@ -232,9 +281,10 @@ def scene_from_arrays(
         directional_lights, DirectionalLights, ("direction", "irradiance"), path
     )
 
-    diag = scale_of(v, poly)
-    if not np.isfinite(diag**2):
-        raise SceneError("coordinates are too large (the bounding box overflows float64)", path)
+    diag = scale_of(v, poly)  # finite: check_vertices bounded every coordinate
+    if 0 < diag < tolerances.MIN_DIAGONAL:
+        raise SceneError(f"the scene is {diag:.3g} across, below {tolerances.MIN_DIAGONAL:g} "
+                         "(its tolerances would underflow): scale it up", path)
     # a quad that is not planar and convex is split into two triangles, as a file's would be
     quad = poly[:, 3] >= 0
     if quad.any():
@@ -262,6 +312,7 @@ def scene_from_arrays(
                       "and winding as an earlier face; the first is kept)", stacklevel=2)
         poly, pm, origin = poly[~repeated], pm[~repeated], origin[~repeated]
     _refuse_coplanar_overlaps(v, poly, origin, diag, path)
+    _check_magnitudes(pm, ke, names, points, directional, diag, path)
 
     emits = (ke[pm] > 0).any()
     lit = (points.intensity > 0).any() or (directional.irradiance > 0).any()
