@@ -51,8 +51,10 @@ def _cases(quick: bool):
             return results
         out.append((f"degenerate: {name}", run_case))
 
-    out.append(("degenerate: coplanar overlapping faces",  # refused (SceneError)
-                lambda: sc.safety("coplanar overlapping faces", sc.coplanar_overlap_scene())))
+    out.append(("degenerate: rug on an emitting floor",  # refused (SceneError)
+                lambda: sc.safety("rug on an emitting floor", sc.coplanar_overlap_scene())))
+    out.append(("degenerate: rug on a floor, lifted",  # resolved (issue 16)
+                lambda: sc.safety("rug on a floor, lifted", sc.rug_scene())))
 
     reference = {}
 

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 
 from daskrad import __version__
-from daskrad.errors import DaskradError
+from daskrad.errors import DaskradError, DaskradWarning
 
 
 class _Parser(argparse.ArgumentParser):
@@ -113,8 +114,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None, *,
+                  _default=warnings.showwarning):
+    """A :class:`DaskradWarning` is one line, ``daskrad: warning: ...`` (no Python source
+    line); any other warning is shown as Python shows it."""
+    if issubclass(category, DaskradWarning):
+        (file or sys.stderr).write(f"daskrad: warning: {message}\n")
+    else:
+        _default(message, category, filename, lineno, file, line)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", DaskradWarning)
+        warnings.showwarning = _show_warning
+        return _main(args)
+
+
+def _main(args) -> int:
     try:
         from daskrad import run as pipeline
 

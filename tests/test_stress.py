@@ -17,8 +17,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from daskrad import solve
-from daskrad.errors import SceneError
+from daskrad import solve, tolerances
+from daskrad.errors import DaskradWarning, SceneError
 from daskrad.run import solve_scene
 from daskrad.scene import box_scene, scene_from_arrays
 from tests import stress_cases as sc
@@ -58,19 +58,32 @@ def test_degenerate_geometry_in_a_furnace_gives_E_over_one_minus_rho(case):
     assert r.ok, r
 
 
-def test_coplanar_overlapping_faces_are_refused_naming_both_faces():
-    # a "rug" lying exactly in the floor's plane z-fights with it (measured before the
-    # refusal: the hidden copy shoots and receives nothing, furnace error 50 %): refused in
-    # one line naming the file and the two faces (the rug is the 25th, the floor piece the 9th)
+def test_rug_on_an_emitting_floor_is_refused_naming_both_faces():
+    # a "rug" lying exactly in the floor's plane z-fights with it (measured before issue 7
+    # refused it: the hidden copy shoots and receives nothing, furnace error 50 %). In the
+    # furnace the floor emits, so lifting the rug would leave the covered floor emitting
+    # through the rug's back: refused in one line naming the file and the two faces (the rug
+    # is the 25th, the floor piece the 9th)
     with pytest.raises(SceneError) as err:
         sc.coplanar_overlap_scene()
     line = err.value.line()
     assert "\n" not in line
-    assert line.startswith("<rug>: faces 9 and 25 lie in one plane, face the same way and "
-                           "overlap"), line
+    assert line.startswith("<rug>: face 25 lies on emitting face 9 in one plane"), line
     # the same rug facing down (back to back with the floor) is another surface: accepted
     rug_down = (sc.RUG[0], [[3, 2, 1, 0]])
     assert len(sc.box_with(*rug_down).polygons) == 25
+
+
+def test_rug_on_a_floor_is_lifted_and_keeps_the_invariants():
+    # issue 16: on a floor that does not emit, the rug is lifted DECAL_LIFT of the diagonal
+    # and shows; the floor under it is hidden. The box stays closed: the ledger holds, the
+    # radiosity stays bounded, the unshot power never grows
+    with pytest.warns(DaskradWarning, match="1 faces lie on larger faces .*first face 25 on "
+                      "face 9"):
+        scene = sc.rug_scene()
+    rug = scene.vertices[scene.polygons[24]]
+    np.testing.assert_allclose(rug[:, 1], tolerances.DECAL_LIFT * np.sqrt(3), rtol=1e-12)
+    _safety_ok(sc.safety("rug lifted off the floor", scene), furnace=False)
 
 
 def test_zero_area_faces_are_dropped_with_a_warning():
@@ -140,10 +153,11 @@ def test_near_field_shots_conserve_energy(gap):
     _safety_ok(sc.near_field_cases(gap), furnace=False)
 
 
-def test_near_field_with_no_gap_is_a_coplanar_overlap_and_refused():
-    # gap 0: the plate's upper face lies in the floor's plane facing up like the floor (and
-    # the tiny square on the plate's lower face): z-fighting pairs, refused like the rug
-    with pytest.raises(SceneError, match=r"^<near field>: faces \d+ and \d+ lie in one plane"):
+def test_near_field_with_no_gap_is_a_coplanar_overlap_and_resolved():
+    # gap 0: the plate's upper face lies in the floor's plane facing up like the floor, and
+    # the tiny square lies on the plate's lower face: the smaller face of each overlapping
+    # pair is lifted (the four floor quads, each smaller than the plate, and the tiny square)
+    with pytest.warns(DaskradWarning, match=r"^<near field>: 5 faces lie on larger faces"):
         sc.near_field_scene(0.0)
 
 

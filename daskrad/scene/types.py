@@ -114,6 +114,10 @@ class Scene:
         ``None`` when the TOML gives none; the renderer then frames the bounding box.
     dropped_degenerate : int
         Zero-area faces dropped while loading (reported in a warning).
+    warnings : tuple of str
+        One line per change made to the input while loading (zero-area and duplicated faces
+        dropped, coplanar overlaps resolved), each naming the file; also issued as
+        :class:`daskrad.errors.DaskradWarning`.
     """
 
     path: str
@@ -125,6 +129,7 @@ class Scene:
     directional_lights: DirectionalLights = field(default_factory=DirectionalLights)
     camera: Camera | None = None
     dropped_degenerate: int = 0
+    warnings: tuple[str, ...] = ()
 
     @property
     def bounds(self) -> np.ndarray:
