@@ -119,6 +119,9 @@ def _cases(quick: bool):
                 sc.Result(name, "energy ledger (relative)", worst["ledger"], 1e-3,
                           note=f"{n} scenes")]
 
+    out.append(("big input: polygon of 10,000 corners",
+                lambda: sc.big_polygon_case(tmp / "disc", 10_000)))
+    out.append(("big input: 100,000 coplanar triangles", lambda: sc.coplanar_soup_case(100_000)))
     out.append(("random closed boxes", lambda: random_scenes("box")))
     out.append(("random triangle soups", lambda: random_scenes("soup")))
 

@@ -307,3 +307,34 @@ def test_scene_no_light_reaches_warns_on_stderr_and_in_the_report(tmp_path, caps
     report = _plate_run(tmp_path / "front", -1.0)
     assert report["warnings"] == []
     assert "no surface receives" not in capsys.readouterr().err
+
+
+# --- 7. big inputs (issue 13) ---------------------------------------------------------------
+
+def test_polygon_of_10000_corners_meshes_in_seconds_with_a_sane_element_count(tmp_path):
+    # a convex disc of 10⁴ corners: cut into ear strips, not a fan of 10⁴ slivers each meshed
+    # like a triangle as long as the disc (806,644 elements and 462 s before); its area is
+    # kept exactly (the triangles tile the polygon)
+    _assert_ok(sc.big_polygon_case(tmp_path, 10_000))
+
+
+def test_concave_polygon_of_10000_corners_is_refused_at_once(tmp_path):
+    # ear clipping is O(n²) Python steps: past MAX_CLIPPED_CORNERS the face is refused in one
+    # line before any work
+    import time
+
+    from daskrad.scene import load_scene
+    from daskrad.scene.polygons import MAX_CLIPPED_CORNERS
+
+    path = sc.disc_obj(tmp_path, 10_000, star=True)
+    start = time.perf_counter()
+    with pytest.raises(SceneError, match=f"face 1 has 10000 corners .* more than "
+                       f"{MAX_CLIPPED_CORNERS} corners"):
+        load_scene(path)
+    assert time.perf_counter() - start < 30.0
+
+
+def test_coplanar_overlap_check_of_100000_triangles_in_seconds():
+    # 100,000 triangles tiling one plane (no overlap found) and 100,000 small ones scattered
+    # in one plane: each checked in seconds (10,000 took 14.6 s before)
+    _assert_ok(sc.coplanar_soup_case(100_000))
