@@ -490,3 +490,22 @@ def test_scene_from_arrays_splits_bad_quads_and_accepts_triangles():
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no degenerate face here: no warning
         scene_from_arrays(v, [[0, 1, 4]], [0], [[0.5] * 3], [[1, 1, 1]])
+
+
+def test_big_concave_polygon_is_ear_clipped_all_around():
+    # a star of 400 corners (radii 1 and 0.9): n - 2 triangles wound like the face, tiling its
+    # exact area; ears are cut all around in turn, so few triangles span the star (cutting
+    # them at one place left a fan of slivers: 100,524 elements for 1000 corners, now 3,570)
+    n = 400
+    ang = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    r = np.where(np.arange(n) % 2, 0.9, 1.0)
+    pts = np.column_stack([r * np.cos(ang), r * np.sin(ang), np.zeros(n)])
+    polys, _ = faces_to_polygons(pts, np.arange(n), np.array([n]), diag=2.0)
+    assert len(polys) == n - 2
+    p = pts[polys[:, :3]]
+    z = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])[:, 2]
+    assert (z > 0).all()
+    exact = 0.5 * np.sum(r * np.roll(r, -1)) * np.sin(2 * np.pi / n)
+    np.testing.assert_allclose(0.5 * z.sum(), exact, rtol=1e-12)
+    longest = np.linalg.norm(p - np.roll(p, 1, axis=1), axis=2).max(axis=1)
+    assert (longest > 1.0).sum() <= 4 * np.log2(n)

@@ -90,9 +90,14 @@ def _ear_clip(vertices: np.ndarray, face: np.ndarray, diag: float) -> np.ndarray
     eps = tolerances.DEGENERATE_AREA * diag**2
     idx = list(face)
     tris = []
+    start = 0
     while len(idx) > 3:
         m = len(idx)
-        for k in range(m):
+        # the scan resumes after the last ear, so ears are cut all around the polygon in
+        # turn (every other corner per round, as :func:`_ear_strips` does), not all at one
+        # place, which would leave a fan of slivers
+        for step in range(m):
+            k = (start + step) % m
             a, b, c = idx[k - 1], idx[k], idx[(k + 1) % m]
             pa, pb, pc = vertices[a], vertices[b], vertices[c]
             if np.dot(np.cross(pb - pa, pc - pb), n_vec) <= eps:
@@ -107,6 +112,8 @@ def _ear_clip(vertices: np.ndarray, face: np.ndarray, diag: float) -> np.ndarray
                 continue
             tris.append((a, b, c))
             del idx[k]
+            start = k % (m - 1)  # the corner after the ear now has index k
+            start = (start + 1) % (m - 1)  # skip it: its neighbourhood just changed
             break
         else:  # no ear: give up on this polygon's shape and fan the rest
             tris.extend((idx[0], idx[j], idx[j + 1]) for j in range(1, len(idx) - 1))
