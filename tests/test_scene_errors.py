@@ -150,6 +150,10 @@ CASES = {
     "point-light-1e200": lambda t: (_toml(t, '[[light]]\ntype = "point"\nposition = [0, 0, 1]\n'
                                           "intensity = [1e200, 1, 1]\n"), None, t / "s.obj",
                                     "point light 1: intensity R = 1e+200 is out of range"),
+    "toml-fifo": lambda t: (_obj(t, TRI + "f 1 2 3\n"), t / _fifo(t / "c.toml"), t / "c.toml",
+                           "not a regular file"),
+    "camera-1e308": lambda t: (_toml(t, "[camera]\neye = [0, 0, 1e308]\nlook_at = [0, 0, 0]\n"
+                                     "fov = 40\n"), None, t / "s.toml", "camera.eye"),
     "directional-1e308": lambda t: (_toml(t, '[[light]]\ntype = "directional"\n'
                                           "direction = [0, 0, -1]\nirradiance = [1e308, 1, 1]\n"),
                                     None, t / "s.obj", "irradiance R = 1e+308 is out of range"),
@@ -250,7 +254,7 @@ CLI_CASES = ["missing", "unknown-format", "nan", "kd-one", "no-light", "toml-mal
              # RuntimeWarnings before the line, or rendered an inf/NaN image with exit 0
              "mtl-fifo", "mtl-dev-zero", "mtl-too-large", "mtl-not-a-library", "scene-fifo",
              "index-overflow", "ply-index-past-vertices", "coordinates-1e308", "ke-1e308",
-             "point-light-1e308", "point-light-1e200"]
+             "point-light-1e308", "point-light-1e200", "toml-fifo", "camera-1e308"]
 
 
 @pytest.mark.parametrize("case", CLI_CASES)

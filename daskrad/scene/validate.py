@@ -347,6 +347,12 @@ def scene_from_arrays(
         directional_lights, DirectionalLights, ("direction", "irradiance"), path
     )
 
+    if camera is not None:
+        for name in ("eye", "look_at"):
+            at = np.asarray(getattr(camera, name), dtype=np.float64)
+            if not (np.abs(at) <= tolerances.MAX_COORDINATE).all():
+                raise SceneError(f"camera {name} {at.tolist()} lies beyond "
+                                 f"±{tolerances.MAX_COORDINATE:g}", path)
     diag = scale_of(v, poly)  # finite: check_vertices bounded every coordinate
     if 0 < diag < tolerances.MIN_DIAGONAL:
         raise SceneError(f"the scene is {diag:.3g} across, below {tolerances.MIN_DIAGONAL:g} "
