@@ -112,8 +112,9 @@ def _ear_clip(vertices: np.ndarray, face: np.ndarray, diag: float) -> np.ndarray
                 continue
             tris.append((a, b, c))
             del idx[k]
-            start = k % (m - 1)  # the corner after the ear now has index k
-            start = (start + 1) % (m - 1)  # skip it: its neighbourhood just changed
+            # the corner after the ear now has index k: resume one further (its neighbourhood
+            # just changed; it comes round again next time)
+            start = (k + 1) % (m - 1)
             break
         else:  # no ear: give up on this polygon's shape and fan the rest
             tris.extend((idx[0], idx[j], idx[j + 1]) for j in range(1, len(idx) - 1))
@@ -150,14 +151,11 @@ def _ear_strips(face: np.ndarray) -> np.ndarray:
     ring = np.asarray(face, dtype=np.int64)
     while len(ring) > 3:
         m = len(ring)
-        k = m // 2                          # ears (r[2i], r[2i+1], r[2i+2 mod m]), i < k
-        i = 2 * np.arange(k)
-        if m % 2:                           # odd: the last kept corner is r[m-1]
-            out.append(np.stack([ring[i], ring[i + 1], ring[i + 2]], axis=1))
-            ring = ring[0::2]
-        else:
-            out.append(np.stack([ring[i], ring[i + 1], ring[(i + 2) % m]], axis=1))
-            ring = ring[0::2]
+        # ears (r[2i], r[2i+1], r[2i+2 mod m]) for i < m // 2; the even corners stay (for
+        # an odd m the last, r[m-1], closes the ring)
+        i = 2 * np.arange(m // 2)
+        out.append(np.stack([ring[i], ring[i + 1], ring[(i + 2) % m]], axis=1))
+        ring = ring[0::2]
     if len(ring) == 3:
         out.append(ring[None, :])
     return np.concatenate(out)
