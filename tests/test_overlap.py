@@ -8,14 +8,15 @@ import pytest
 
 from daskrad import tolerances
 from daskrad.kernels.overlap import coplanar_overlap
-from daskrad.scene.overlap import _corners, _unit_normals, coplanar_overlaps
+from daskrad.scene.overlap import coplanar_overlaps
 
 
 def _all_pairs(vertices, polygons, diag):
     """Every pair ``i < j`` facing the same way, through the exact kernel: O(n²)."""
-    c = _corners(vertices, polygons)
+    c = vertices[np.where(polygons >= 0, polygons, polygons[:, 2:3])]   # (Q, 4, 3)
     c = c - c.reshape(-1, 3).min(axis=0)
-    n = _unit_normals(c)
+    n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])                  # corners are convex
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
     i, j = np.triu_indices(len(polygons), 1)
     same = np.einsum("ij,ij->i", n[i], n[j]) > 0
     i, j = i[same], j[same]
