@@ -51,8 +51,10 @@ def _cases(quick: bool):
             return results
         out.append((f"degenerate: {name}", run_case))
 
-    out.append(("degenerate: coplanar overlapping faces",  # refused (SceneError)
-                lambda: sc.safety("coplanar overlapping faces", sc.coplanar_overlap_scene())))
+    out.append(("degenerate: rug on an emitting floor",  # refused (SceneError)
+                lambda: sc.safety("rug on an emitting floor", sc.coplanar_overlap_scene())))
+    out.append(("degenerate: rug on a floor, lifted",  # resolved (issue 16)
+                lambda: sc.safety("rug on a floor, lifted", sc.rug_scene())))
 
     reference = {}
 
@@ -117,6 +119,9 @@ def _cases(quick: bool):
                 sc.Result(name, "energy ledger (relative)", worst["ledger"], 1e-3,
                           note=f"{n} scenes")]
 
+    out.append(("big input: polygon of 10,000 corners",
+                lambda: sc.big_polygon_case(tmp / "disc", 10_000)))
+    out.append(("big input: 100,000 coplanar triangles", lambda: sc.coplanar_soup_case(100_000)))
     out.append(("random closed boxes", lambda: random_scenes("box")))
     out.append(("random triangle soups", lambda: random_scenes("soup")))
 

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 
 from daskrad import __version__
-from daskrad.errors import DaskradError
+from daskrad.errors import DaskradError, DaskradWarning
 
 
 class _Parser(argparse.ArgumentParser):
@@ -144,9 +145,26 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     return parser
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None, *,
+                  _default=warnings.showwarning):
+    """A :class:`DaskradWarning` is one line, ``daskrad: warning: ...`` (no Python source
+    line); any other warning is shown as Python shows it."""
+    if issubclass(category, DaskradWarning):
+        (file or sys.stderr).write(f"daskrad: warning: {message}\n")
+    else:
+        _default(message, category, filename, lineno, file, line)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = build_parser(help_choices="-h" in argv or "--help" in argv).parse_args(argv)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", DaskradWarning)
+        warnings.showwarning = _show_warning
+        return _main(args)
+
+
+def _main(args) -> int:
     try:
         import numpy as np
 

@@ -27,3 +27,11 @@ class SceneError(DaskradError):
 
 class OptionError(DaskradError):
     """A command-line option has a bad value."""
+
+
+class DaskradWarning(UserWarning):
+    """Something daskrad changed in the user's input or could not do as asked; the run goes on.
+
+    The CLI prints each as one line, ``daskrad: warning: <message>``, without Python's source
+    line; a :class:`daskrad.scene.Scene` keeps the warnings of its loading in ``warnings``.
+    """

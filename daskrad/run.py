@@ -86,6 +86,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
                             output.not_converged(sol, settings)) if w]
     for w in warnings:
         output.warn(w)
+    warnings = [*scene.warnings, *warnings]     # the loader's were printed as it read
     seconds["total"] = time.perf_counter() - start
     report = output.report(scene, outputs, settings, light, sol, image, workers=ex.workers,
                            seconds=seconds, warnings=warnings)

@@ -71,6 +71,18 @@ COPLANAR = 1e-9
 #: ``COPLANAR · diag / (COPLANAR_CELL / 5)`` can be) are not compared.
 COPLANAR_CELL = 1e-3
 
+#: A face lying on a larger face in one plane (a decal, a rug, a picture on a wall: a coplanar
+#: overlap, see ``COPLANAR``) is lifted ``DECAL_LIFT * diag`` off the plane along its normal so
+#: that it shows and the face under it is hidden there (issue 16); a decal on a decal twice as
+#: far. 2e-5 is what the converted scenes of ``../shared/scenes`` used: 200 × ``RAY_OFFSET`` (the
+#: decal is above where the rays of the face under it start) and 2e4 × ``COPLANAR`` and
+#: ``HORIZON_EPS`` (the lifted face is another plane for every test), yet 0.2 mm in a 10 m room.
+DECAL_LIFT = 2e-5
+
+#: Faces stacked more than this deep in one plane (decal on decal on ...) are refused: the
+#: input is a soup of overlapping faces, not decals (16 levels lift 3.2e-4 · diag).
+MAX_DECAL_DEPTH = 16
+
 #: The anti-aliased hemisphere method (``formfactor.hemisphere_rows``) takes an element's
 #: visibility from its pixel counts (``won / covered``) only when its exact projected area on
 #: the base disc (Lambert's ``L · n_disc``, in pixels) is at least this; a smaller element takes
@@ -85,3 +97,25 @@ SUBPIXEL_AREA_PX = 1.0
 #: buffer tell the two sides apart, and far below anything that changes the light (a coincident
 #: back would z-fight its front: 303 of 3,440 elements of a two-sided test room got no light).
 TWO_SIDED_GAP = 1e-5
+
+# --- limits on magnitudes (issue 13): refused at load time, in one line, instead of an inf or
+# NaN image. float64 overflows at 1.8e308; these bounds leave room for the products the solver
+# and renderer form, so nothing inside them can overflow on the way.
+
+#: Largest accepted ``|coordinate|`` of a vertex or a point light. The direct-light kernel
+#: divides by ``r⁴`` (``cos·cos / (r²)²``); with every coordinate within ±1e75 the scene's
+#: diagonal is at most 3.5e75 and ``diag⁴`` at most 1.5e302.
+MAX_COORDINATE = 1e75
+
+#: Smallest accepted scene diagonal: lengths a billionth of the scene (the tolerances above)
+#: to the fourth power must stay normal floats (``(1e-60 · 1e-9)⁴ = 1e-276``).
+MIN_DIAGONAL = 1e-60
+
+#: Largest accepted light level, in W/m² (the file's unit of area): a material's exitance
+#: ``π·Ke``, a point light's irradiance at the scene's size ``I / diag²``, a directional
+#: light's irradiance ``E``, and their sum. Images (OpenEXR) and the store hold float32
+#: (largest 3.4e38): 1e30 leaves 1e8 for the gain of interreflections ``1 / (1 − ρ)`` and for
+#: a point light nearer to a surface than the scene's size. Squared over areas up to
+#: ``diag² ≤ 1.2e151`` (the unshot RMS) it stays below 1e212. No real scene comes near it: the
+#: sun's exitance is 6e7 W/m².
+MAX_LIGHT = 1e30

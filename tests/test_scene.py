@@ -258,16 +258,35 @@ def test_nonplanar_and_concave_quads_are_split(rng):
 
 
 def test_convex_ngons_fan_to_their_area(rng):
-    # random convex polygons: points on a circle in a random plane; fan area = Newell area
-    for n in (5, 6, 9):
+    # random convex polygons: points on a circle in a random plane; fan (n <= 8) or ear-strip
+    # (n > 8) area = Newell area, every triangle wound like the face (no fold)
+    for n in (5, 6, 9, 12, 33, 1000):
         ang = np.sort(rng.uniform(0, 2 * np.pi, n))
         basis = np.linalg.qr(rng.normal(size=(3, 3)))[0]
         circle = np.column_stack([np.cos(ang), np.sin(ang), np.zeros(n)])
         pts = circle @ basis.T + rng.normal(size=3)
         polys, _ = faces_to_polygons(pts, np.arange(n), np.array([n]), diag=2.0)
         assert len(polys) == n - 2
-        expect = np.linalg.norm(newell_normal(pts, np.arange(n)[None]))
+        normal = newell_normal(pts, np.arange(n)[None])[0]
+        expect = np.linalg.norm(normal)
         np.testing.assert_allclose(polygon_area(pts, polys).sum(), expect, rtol=1e-12)
+        p = pts[polys[:, :3]]
+        assert (np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]) @ normal > 0).all()
+
+
+def test_big_convex_polygon_is_cut_into_ear_strips_not_a_fan():
+    # a fan of a 1000-gon is 998 triangles as long as the disc (each meshed into as many
+    # elements as a big triangle: issue 13); ear strips keep all but a few short: at most
+    # 2·log2(n) triangles reach half the diameter, and each corner is in O(log n) triangles
+    n = 1000
+    ang = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    pts = np.column_stack([np.cos(ang), np.sin(ang), np.zeros(n)])
+    polys, face = faces_to_polygons(pts, np.arange(n), np.array([n]), diag=2.0)
+    assert len(polys) == n - 2 and (face == 0).all() and (polys[:, 3] == -1).all()
+    p = pts[polys[:, :3]]
+    longest = np.linalg.norm(p - np.roll(p, 1, axis=1), axis=2).max(axis=1)
+    assert (longest > 1.0).sum() <= 2 * np.log2(n)
+    assert np.bincount(polys[:, :3].ravel()).max() <= 2 * np.log2(n) + 2
 
 
 def test_pair_triangles_recovers_quads():
@@ -466,3 +485,22 @@ def test_scene_from_arrays_splits_bad_quads_and_accepts_triangles():
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no degenerate face here: no warning
         scene_from_arrays(v, [[0, 1, 4]], [0], [[0.5] * 3], [[1, 1, 1]])
+
+
+def test_big_concave_polygon_is_ear_clipped_all_around():
+    # a star of 400 corners (radii 1 and 0.9): n - 2 triangles wound like the face, tiling its
+    # exact area; ears are cut all around in turn, so few triangles span the star (cutting
+    # them at one place left a fan of slivers: 100,524 elements for 1000 corners, now 3,570)
+    n = 400
+    ang = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    r = np.where(np.arange(n) % 2, 0.9, 1.0)
+    pts = np.column_stack([r * np.cos(ang), r * np.sin(ang), np.zeros(n)])
+    polys, _ = faces_to_polygons(pts, np.arange(n), np.array([n]), diag=2.0)
+    assert len(polys) == n - 2
+    p = pts[polys[:, :3]]
+    z = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])[:, 2]
+    assert (z > 0).all()
+    exact = 0.5 * np.sum(r * np.roll(r, -1)) * np.sin(2 * np.pi / n)
+    np.testing.assert_allclose(0.5 * z.sum(), exact, rtol=1e-12)
+    longest = np.linalg.norm(p - np.roll(p, 1, axis=1), axis=2).max(axis=1)
+    assert (longest > 1.0).sum() <= 4 * np.log2(n)

@@ -17,8 +17,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from daskrad import solve
-from daskrad.errors import SceneError
+from daskrad import solve, tolerances
+from daskrad.errors import DaskradWarning, SceneError
 from daskrad.run import solve_scene
 from daskrad.scene import box_scene, scene_from_arrays
 from daskrad.testing import stress as sc
@@ -58,19 +58,32 @@ def test_degenerate_geometry_in_a_furnace_gives_E_over_one_minus_rho(case):
     assert r.ok, r
 
 
-def test_coplanar_overlapping_faces_are_refused_naming_both_faces():
-    # a "rug" lying exactly in the floor's plane z-fights with it (measured before the
-    # refusal: the hidden copy shoots and receives nothing, furnace error 50 %): refused in
-    # one line naming the file and the two faces (the rug is the 25th, the floor piece the 9th)
+def test_rug_on_an_emitting_floor_is_refused_naming_both_faces():
+    # a "rug" lying exactly in the floor's plane z-fights with it (measured before issue 7
+    # refused it: the hidden copy shoots and receives nothing, furnace error 50 %). In the
+    # furnace the floor emits, so lifting the rug would leave the covered floor emitting
+    # through the rug's back: refused in one line naming the file and the two faces (the rug
+    # is the 25th, the floor piece the 9th)
     with pytest.raises(SceneError) as err:
         sc.coplanar_overlap_scene()
     line = err.value.line()
     assert "\n" not in line
-    assert line.startswith("<rug>: faces 9 and 25 lie in one plane, face the same way and "
-                           "overlap"), line
+    assert line.startswith("<rug>: face 25 lies on emitting face 9 in one plane"), line
     # the same rug facing down (back to back with the floor) is another surface: accepted
     rug_down = (sc.RUG[0], [[3, 2, 1, 0]])
     assert len(sc.box_with(*rug_down).polygons) == 25
+
+
+def test_rug_on_a_floor_is_lifted_and_keeps_the_invariants():
+    # issue 16: on a floor that does not emit, the rug is lifted DECAL_LIFT of the diagonal
+    # and shows; the floor under it is hidden. The box stays closed: the ledger holds, the
+    # radiosity stays bounded, the unshot power never grows
+    with pytest.warns(DaskradWarning, match="1 faces lie on larger faces .*first face 25 on "
+                      "face 9"):
+        scene = sc.rug_scene()
+    rug = scene.vertices[scene.polygons[24]]
+    np.testing.assert_allclose(rug[:, 1], tolerances.DECAL_LIFT * np.sqrt(3), rtol=1e-12)
+    _safety_ok(sc.safety("rug lifted off the floor", scene), furnace=False)
 
 
 def test_zero_area_faces_are_dropped_with_a_warning():
@@ -141,10 +154,11 @@ def test_near_field_shots_conserve_energy(gap):
     _safety_ok(sc.near_field_cases(gap), furnace=False)
 
 
-def test_near_field_with_no_gap_is_a_coplanar_overlap_and_refused():
-    # gap 0: the plate's upper face lies in the floor's plane facing up like the floor (and
-    # the tiny square on the plate's lower face): z-fighting pairs, refused like the rug
-    with pytest.raises(SceneError, match=r"^<near field>: faces \d+ and \d+ lie in one plane"):
+def test_near_field_with_no_gap_is_a_coplanar_overlap_and_resolved():
+    # gap 0: the plate's upper face lies in the floor's plane facing up like the floor, and
+    # the tiny square lies on the plate's lower face: the smaller face of each overlapping
+    # pair is lifted (the four floor quads, each smaller than the plate, and the tiny square)
+    with pytest.warns(DaskradWarning, match=r"^<near field>: 5 faces lie on larger faces"):
         sc.near_field_scene(0.0)
 
 
@@ -294,3 +308,34 @@ def test_scene_no_light_reaches_warns_on_stderr_and_in_the_report(tmp_path, caps
     report = _plate_run(tmp_path / "front", -1.0)
     assert report["warnings"] == []
     assert "no surface receives" not in capsys.readouterr().err
+
+
+# --- 7. big inputs (issue 13) ---------------------------------------------------------------
+
+def test_polygon_of_10000_corners_meshes_in_seconds_with_a_sane_element_count(tmp_path):
+    # a convex disc of 10⁴ corners: cut into ear strips, not a fan of 10⁴ slivers each meshed
+    # like a triangle as long as the disc (806,644 elements and 462 s before); its area is
+    # kept exactly (the triangles tile the polygon)
+    _assert_ok(sc.big_polygon_case(tmp_path, 10_000))
+
+
+def test_concave_polygon_of_10000_corners_is_refused_at_once(tmp_path):
+    # ear clipping is O(n²) Python steps: past MAX_CLIPPED_CORNERS the face is refused in one
+    # line before any work
+    import time
+
+    from daskrad.scene import load_scene
+    from daskrad.scene.polygons import MAX_CLIPPED_CORNERS
+
+    path = sc.disc_obj(tmp_path, 10_000, star=True)
+    start = time.perf_counter()
+    with pytest.raises(SceneError, match=f"face 1 has 10000 corners .* more than "
+                       f"{MAX_CLIPPED_CORNERS} corners"):
+        load_scene(path)
+    assert time.perf_counter() - start < 30.0
+
+
+def test_coplanar_overlap_check_of_100000_triangles_in_seconds():
+    # 100,000 triangles tiling one plane (no overlap found) and 100,000 small ones scattered
+    # in one plane: each checked in seconds (10,000 took 14.6 s before)
+    _assert_ok(sc.coplanar_soup_case(100_000))

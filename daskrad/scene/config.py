@@ -86,6 +86,10 @@ def _camera(table, path: Path) -> Camera:
     eye = _vec3(table, "eye", "camera", path)
     look_at = _vec3(table, "look_at", "camera", path)
     up = _vec3(table, "up", "camera", path) if "up" in table else np.array([0.0, 1.0, 0.0])
+    for name, at in (("eye", eye), ("look_at", look_at)):
+        if not (np.abs(at) <= tolerances.MAX_COORDINATE).all():  # the view's products overflow
+            raise SceneError(f"camera.{name} {at.tolist()} lies beyond "
+                             f"±{tolerances.MAX_COORDINATE:g}", path)
     fov = table["fov"]
     if not _is_number(fov) or not 0.0 < fov < 180.0:
         raise SceneError(f"camera.fov must be a number of degrees in (0, 180), got {fov!r}", path)
@@ -151,6 +155,9 @@ def _lights(entries, path: Path) -> tuple[PointLights, DirectionalLights]:
 def read_config(path: str | Path) -> Config:
     """Parse and check one TOML sidecar."""
     path = Path(path)
+    if path.exists() and not (path.is_file() or path.is_dir()):
+        # a FIFO or a device: reading it hangs or never ends (issue 13)
+        raise SceneError("TOML config is not a regular file (a device, FIFO or socket)", path)
     try:
         with open(path, "rb") as f:
             data = tomllib.load(f)

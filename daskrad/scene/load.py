@@ -52,6 +52,8 @@ def load_scene(path: str | Path, config: str | Path | None = None,
         raise SceneError("no such file", path)
     if path.is_dir():
         raise SceneError("is a directory, not a scene file", path)
+    if not path.is_file():  # a FIFO or a device: reading it hangs or never ends
+        raise SceneError("is not a regular file (a device, FIFO or socket)", path)
     suffix = path.suffix.lower()
     if suffix not in SUFFIXES:
         raise SceneError(
@@ -72,7 +74,7 @@ def load_scene(path: str | Path, config: str | Path | None = None,
         obj = read_obj(path)
         vertices = check_vertices(obj.vertices, str(path))
         diag = scale_of(vertices, obj.flat)
-        polygons, face = faces_to_polygons(vertices, obj.flat, obj.counts, diag)
+        polygons, face = faces_to_polygons(vertices, obj.flat, obj.counts, diag, str(path))
         polygon_material = obj.face_material[face]
         polygon_face = face
         resolved = [m.resolved() for m in obj.materials]

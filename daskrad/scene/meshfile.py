@@ -135,8 +135,16 @@ def read_mesh(path: Path):
             continue  # point clouds, paths
         v = check_vertices(geom.vertices, str(path))
         t = np.asarray(transform, dtype=np.float64)
-        v = v @ t[:3, :3].T + t[:3, 3]
+        with np.errstate(over="ignore", invalid="ignore"):  # checked below, in one line
+            v = v @ t[:3, :3].T + t[:3, 3]
         f = np.asarray(faces, dtype=np.int64)
+        if f.ndim != 2 or f.shape[1] != 3:
+            raise SceneError(f"faces must be triangles, got shape {f.shape}", path)
+        bad = (f < 0) | (f >= len(v))
+        if bad.any():
+            row = int(np.flatnonzero(bad.any(axis=1))[0])
+            raise SceneError(f"face {row + 1}: vertex index {int(f[bad][0])} is out of range "
+                             f"({len(v)} vertices)", path)
         if np.linalg.det(t[:3, :3]) < 0:
             # a mirroring transform turns the winding around; glTF asks to reverse it back
             f = f[:, ::-1]

@@ -18,12 +18,19 @@ The parser walks the text once (as trimesh's does); everything after that is vec
 
 from __future__ import annotations
 
+import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from daskrad.errors import SceneError
+
+#: Largest MTL file read (bytes). A material library holds a few lines per material: 64 MiB is
+#: hundreds of thousands of materials, and the bound stops an ``mtllib`` line naming a huge or
+#: endless file (issue 13: ``mtllib /dev/zero`` grew memory without bound).
+MAX_MTL_BYTES = 64 << 20
 
 #: Diffuse reflectance of a face without a material, and of a material without ``Kd``.
 DEFAULT_DIFFUSE = (0.73, 0.73, 0.73)
@@ -56,15 +63,30 @@ class MtlMaterial:
         return kd, ke, ks, ns, self.illum == 3
 
 
-def _read_text(path: Path, what: str) -> str:
+def _read_text(path: Path, what: str, max_bytes: int | None = None) -> str:
+    """The text of an OBJ or MTL file; only a regular file (never a FIFO, a device such as
+    ``/dev/zero`` or a directory: reading those hangs or never ends), of at most ``max_bytes``
+    when given."""
     try:
-        data = path.read_bytes()
+        # stat before opening: opening a FIFO for reading blocks until a writer comes
+        st = os.stat(path)
+        if stat.S_ISDIR(st.st_mode):
+            raise SceneError(f"{what} is a directory, not a file", path)
+        if not stat.S_ISREG(st.st_mode):
+            raise SceneError(f"{what} is not a regular file (a device, FIFO or socket)", path)
+        if max_bytes is not None and st.st_size > max_bytes:
+            raise SceneError(f"{what} is too large ({st.st_size:,} bytes; at most "
+                             f"{max_bytes:,})", path)
+        with open(path, "rb") as f:
+            data = f.read() if max_bytes is None else f.read(max_bytes + 1)
     except FileNotFoundError:
         raise SceneError(f"{what} not found", path) from None
     except IsADirectoryError:
         raise SceneError(f"{what} is a directory, not a file", path) from None
     except OSError as err:
         raise SceneError(f"cannot read {what}: {err.strerror or err}", path) from None
+    if max_bytes is not None and len(data) > max_bytes:  # grew while being read
+        raise SceneError(f"{what} is too large (more than {max_bytes:,} bytes)", path)
     if b"\x00" in data[:4096]:
         raise SceneError(f"not a text {what} (binary data)", path)
     # OBJ/MTL have no declared encoding; names are the only non-ASCII content
@@ -89,8 +111,11 @@ def _floats(args: list[str], n: int, lineno: int, path: Path, key: str) -> tuple
 
 
 def parse_mtl(path: Path) -> dict[str, MtlMaterial]:
-    """All materials of one MTL file, by name, with the values the file writes."""
-    text = _read_text(path, "material library (MTL)")
+    """All materials of one MTL file, by name, with the values the file writes.
+
+    A file with no ``newmtl`` line is refused: it is not a material library (an ``mtllib``
+    line naming the wrong file would otherwise show up as "material not defined")."""
+    text = _read_text(path, "material library (MTL)", MAX_MTL_BYTES)
     out: dict[str, MtlMaterial] = {}
     cur: MtlMaterial | None = None
     for lineno, raw in enumerate(text.splitlines(), start=1):
@@ -121,6 +146,8 @@ def parse_mtl(path: Path) -> dict[str, MtlMaterial]:
                 cur.illum = int(args[0])
             except (ValueError, IndexError):
                 raise SceneError(f"line {lineno}: illum needs an integer", path) from None
+    if not out:
+        raise SceneError("not a material library: no newmtl line", path)
     return out
 
 
@@ -143,7 +170,13 @@ class ObjData:
 
 
 def read_obj(path: Path) -> ObjData:
-    """Read an OBJ file and the MTL files its ``mtllib`` lines name (relative to the OBJ)."""
+    """Read an OBJ file and the MTL files its ``mtllib`` lines name.
+
+    An ``mtllib`` path is resolved against the OBJ's folder, never the working directory (as
+    Blender, tinyobjloader and trimesh do); absolute paths and ``..`` are followed like theirs.
+    What it names must be a regular file of at most :data:`MAX_MTL_BYTES` that defines a
+    material, else the error names that file.
+    """
     text = _read_text(path, "OBJ file")
     vert_rows: list[list[str]] = []
     vert_lines: list[int] = []
@@ -209,6 +242,11 @@ def read_obj(path: Path) -> ObjData:
     except ValueError:
         bad = next(i for i, t in enumerate(face_tokens) if not _is_ints(t))
         raise SceneError(f"line {face_lines[bad]}: bad vertex index in face", path) from None
+    except OverflowError:  # beyond int64: out of range whatever the vertex count
+        bad, index = next((i, c) for i, t in enumerate(face_tokens) for c in t
+                          if abs(int(c.split("/", 1)[0])) >= 2**63)
+        raise SceneError(f"line {face_lines[bad]}: vertex index {index.split('/', 1)[0]} is "
+                         f"out of range ({len(vert_rows)} vertices)", path) from None
     before = np.repeat(np.array(face_nverts, dtype=np.int64), counts)
     # OBJ indices are 1-based; a negative index counts back from the last vertex read so far
     resolved = np.where(flat > 0, flat - 1, before + flat)

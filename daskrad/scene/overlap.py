@@ -9,12 +9,16 @@ disjoint (the Cornell ceiling's pieces around the light), and back-to-back faces
 orientation: the two sides of a plate; the light in the ceiling's hole) are not overlaps.
 
 Cost: candidate pairs come from bucketing planes (normal and offset quantized on five shifted
-grids, so two planes closer than a fifth of a cell always share a bucket in one of them), then
-a sweep over bounding boxes inside strips of each bucket; only pairs whose boxes overlap reach
-the exact test. A scene whose planes are all different costs O(Q log Q), and so does a plane
-tiled by faces of similar size (measured: 80,000 triangles in one plane, 4 s). Faces of very
-different sizes in one plane make wide strips: at worst O(m^1.5) box pairs for m faces,
-processed in bounded chunks.
+grids, so two planes closer than a fifth of a cell always share a bucket in one of them; a
+bucket whose faces already shared one bucket of an earlier grid is not swept again), then a
+sweep over bounding boxes inside strips of each bucket, in one numba loop that tests each pair
+of meeting boxes exactly (:func:`daskrad.kernels.overlap.sweep_overlaps`) without listing the
+candidates. A scene whose planes are all different costs O(Q log Q), and so does a plane tiled
+by faces of similar size (measured, issue 13: 100,000 triangles in one plane, 1.0 s; 100,000
+scattered small triangles with 35,630 overlapping pairs, 0.6 s). The cost is O(pairs of
+meeting boxes) in general: faces of very different sizes in one plane make wide strips, and a
+fan of n slivers around one corner has n²/2 meeting boxes (10⁴ slivers: 11 s), which is why
+:func:`daskrad.scene.polygons.faces_to_polygons` never fans a big polygon.
 """
 
 from __future__ import annotations
@@ -22,9 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from daskrad import tolerances
-
-#: Candidate pairs tested per chunk (bounds the memory of a plane tiled by many faces).
-CHUNK = 1 << 20
+from daskrad.kernels.overlap import sweep_overlaps
 
 
 def _corners(vertices: np.ndarray, polygons: np.ndarray) -> np.ndarray:
@@ -38,6 +40,26 @@ def _distinct(x: np.ndarray) -> np.ndarray:
     return x[np.concatenate([[True], x[1:] != x[:-1]])] if len(x) else x
 
 
+def _row_ids(rows: np.ndarray) -> np.ndarray:
+    """``(n,) int64`` ids of the distinct rows of ``rows (n, k)`` int64, equal rows equal ids
+    (a lexsort: ``np.unique(axis=0)`` sorts a structured view, 10× slower on 10⁵ rows)."""
+    order = np.lexsort(rows.T[::-1])
+    s = rows[order]
+    new = np.concatenate([[True], (s[1:] != s[:-1]).any(axis=1)])
+    ids = np.empty(len(rows), np.int64)
+    ids[order] = np.cumsum(new) - 1
+    return ids
+
+
+def _within_one(group: np.ndarray, old: np.ndarray) -> np.ndarray:
+    """``(Q,) bool``: faces whose ``group`` holds faces of a single ``old`` group only."""
+    lo = np.full(group.max() + 1, np.iinfo(np.int64).max)
+    hi = np.full(group.max() + 1, np.iinfo(np.int64).min)
+    np.minimum.at(lo, group, old)
+    np.maximum.at(hi, group, old)
+    return (lo == hi)[group]
+
+
 def _unit_normals(c: np.ndarray) -> np.ndarray:
     """``(Q, 3)`` unit normals from the diagonals (exact for planar quads and triangles)."""
     n = np.cross(c[:, 2] - c[:, 0], c[:, 3] - c[:, 1])
@@ -47,13 +69,14 @@ def _unit_normals(c: np.ndarray) -> np.ndarray:
     return n / np.where(length > 0, length, 1.0)[:, None]
 
 
-def _sweep(group: np.ndarray, lo: np.ndarray, hi: np.ndarray, eps: float):
-    """Chunks ``(a, b)`` of index pairs in one group whose ``[lo, hi]`` intervals meet
-    (within ``eps``), each pair once.
+def _sweep_ends(group: np.ndarray, lo: np.ndarray, hi: np.ndarray, eps: float):
+    """Sweep order and run ends of the intervals ``[lo, hi]`` in each group.
 
-    Sort by (group, lo); for the face at sorted position ``s`` the partners are the following
-    positions of its group whose ``lo <= hi_s + eps``. Ranks of ``lo`` make (group, lo) one
-    integer key, so one ``searchsorted`` finds the end of every face's run.
+    Sort by (group, lo); the face at sorted position ``s`` meets the following positions of
+    its group whose ``lo <= hi_s + eps``, i.e. positions ``s + 1 .. end[s] - 1``. Ranks of
+    ``lo`` make (group, lo) one integer key, so one ``searchsorted`` finds every run's end.
+
+    Returns ``order (m,)`` and ``end (m,)`` int64.
     """
     n = len(group)
     order = np.lexsort((lo, group))
@@ -62,18 +85,7 @@ def _sweep(group: np.ndarray, lo: np.ndarray, hi: np.ndarray, eps: float):
     key = g * (n + 1) + np.searchsorted(values, lo_s, side="left")
     query = g * (n + 1) + np.searchsorted(values, hi_s + eps, side="right")
     end = np.searchsorted(key, query, side="left")
-    count = np.maximum(end - np.arange(n) - 1, 0)
-    start = 0
-    total = np.cumsum(count)
-    while start < n:
-        # positions [start, stop) give at most CHUNK pairs (at least one position)
-        base = total[start - 1] if start else 0
-        stop = max(int(np.searchsorted(total, base + CHUNK, side="right")), start + 1)
-        k = count[start:stop]
-        s = np.repeat(np.arange(start, stop), k)
-        offset = np.arange(int(k.sum())) - np.repeat(np.cumsum(k) - k, k)
-        yield order[s], order[s + 1 + offset]
-        start = stop
+    return order, np.maximum(end, np.arange(n) + 1).astype(np.int64)
 
 
 def _strips(group, normal, lo, hi):
@@ -96,30 +108,7 @@ def _strips(group, normal, lo, hi):
     width = np.where(width > 0, width, 1.0)[group]
     home = np.floor(0.5 * (lo[rows, w] + hi[rows, w]) / width).astype(np.int64)
     both = np.column_stack([np.tile(group, 2), np.concatenate([home, home + 1])])
-    _, strip = np.unique(both, axis=0, return_inverse=True)
-    return strip.reshape(-1), u
-
-
-def _overlap(c, n, a, b, eps) -> np.ndarray:
-    """``(k,) bool``: faces ``a`` and ``b`` (same orientation, coplanar within ``eps``) share
-    a region wider than ``eps`` in every direction.
-
-    Separating axes of two convex polygons in one plane: the in-plane normals of their edges.
-    Touching along an edge or at a corner leaves an axis with overlap ``<= eps``: separate.
-    """
-    ca, cb = c[a], c[b]                                          # (k, 4, 3)
-    both = np.concatenate([ca, cb], axis=1)                      # (k, 8, 3)
-    edges = np.concatenate([np.roll(ca, -1, axis=1) - ca, np.roll(cb, -1, axis=1) - cb],
-                           axis=1)
-    axes = np.cross(edges, n[a][:, None, :])                     # in-plane edge normals
-    length = np.linalg.norm(axes, axis=2)
-    valid = length > 0                                           # a triangle's empty edge
-    axes = axes / np.where(valid, length, 1.0)[..., None]
-    proj = np.einsum("kax,kcx->kac", axes, both)                 # (k, 8 axes, 8 corners)
-    pa, pb = proj[:, :, :4], proj[:, :, 4:]
-    depth = (np.minimum(pa.max(axis=2), pb.max(axis=2))
-             - np.maximum(pa.min(axis=2), pb.min(axis=2)))
-    return ((depth > eps) | ~valid).all(axis=1)
+    return _row_ids(both), u
 
 
 def coplanar_overlaps(vertices: np.ndarray, polygons: np.ndarray, diag: float) -> np.ndarray:
@@ -152,11 +141,16 @@ def coplanar_overlaps(vertices: np.ndarray, polygons: np.ndarray, diag: float) -
     lo, hi = c.min(axis=1), c.max(axis=1)
     found = []
     idx = np.arange(q)
+    earlier = []
     for shift in range(5):
         key = np.floor(params + shift / 5).astype(np.int64)
-        _, group = np.unique(key, axis=0, return_inverse=True)
-        group = group.reshape(-1)
+        group = _row_ids(key)
         shared = np.bincount(group)[group] >= 2
+        # a bucket whose faces all shared one bucket of an earlier grid was swept there: the
+        # usual case (a plane far from a cell boundary lands in one bucket on every grid)
+        for old in earlier:
+            shared &= ~_within_one(group, old)
+        earlier.append(group)
         if not shared.any():
             continue
         sub = idx[shared]
@@ -164,22 +158,11 @@ def coplanar_overlaps(vertices: np.ndarray, polygons: np.ndarray, diag: float) -
         twice = np.concatenate([sub, sub])
         lo_u = np.tile(lo[sub, u], 2)
         hi_u = np.tile(hi[sub, u], 2)
-        for a, b in _sweep(strip, lo_u, hi_u, eps):
-            a, b = twice[a], twice[b]
-            keep = ((lo[a] <= hi[b] + eps) & (lo[b] <= hi[a] + eps)).all(axis=1)
-            keep &= (a != b) & (np.einsum("ij,ij->i", n[a], n[b]) > 0)
-            # one code per pair: the shifted grids and strips find a pair several times
-            found.append(_distinct(np.minimum(a, b)[keep] * q + np.maximum(a, b)[keep]))
-    codes = _distinct(np.concatenate(found)) if found else np.zeros(0, np.int64)
-    hits = []
-    for k in range(0, len(codes), CHUNK):
-        a, b = np.divmod(codes[k:k + CHUNK], q)
-        # every corner of each within eps of the other's plane
-        da = np.abs(np.einsum("kcx,kx->kc", c[b] - centre[a][:, None], n[a])).max(axis=1)
-        db = np.abs(np.einsum("kcx,kx->kc", c[a] - centre[b][:, None], n[b])).max(axis=1)
-        keep = (da <= eps) & (db <= eps)
-        a, b = a[keep], b[keep]
-        hits.append(np.column_stack([a, b])[_overlap(c, n, a, b, eps)])
-    if not hits:
+        order, end = _sweep_ends(strip, lo_u, hi_u, eps)
+        found.append(sweep_overlaps(twice[order], end, lo, hi, c, n, centre, eps))
+    if not found:
         return np.zeros((0, 2), np.int64)
-    return np.concatenate(hits).astype(np.int64)
+    pairs = np.concatenate(found)
+    # one row per pair: the shifted grids and the strips find a pair several times
+    codes = _distinct(pairs[:, 0] * q + pairs[:, 1])
+    return np.column_stack(np.divmod(codes, q)).astype(np.int64)

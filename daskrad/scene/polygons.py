@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from daskrad import tolerances
+from daskrad.errors import SceneError
 
 
 def newell_normal(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -34,14 +35,18 @@ def newell_normal(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return 0.5 * np.cross(p, np.roll(p, -1, axis=1)).sum(axis=1)
 
 
-def convex_planar(vertices: np.ndarray, faces: np.ndarray, diag: float) -> np.ndarray:
+def convex_planar(vertices: np.ndarray, faces: np.ndarray, diag: float,
+                  strict: bool = True) -> np.ndarray:
     """``(k,) bool``: polygons that are planar and strictly convex.
 
     Planar: every corner lies within ``PLANAR_QUAD * diag`` of the plane through the centroid
     with the Newell normal. Strictly convex: at every corner the turn ``e_i × e_{i+1}`` points
     along the normal by more than ``DEGENERATE_AREA * diag²`` (a corner of 180° or a reflex
     corner fails, so a kept quad never has three collinear corners and its normal
-    ``(v1 - v0) × (v2 - v0)`` is well defined).
+    ``(v1 - v0) × (v2 - v0)`` is well defined). With ``strict=False`` a corner of 180° (within
+    that tolerance) passes too: a face cut by :func:`_ear_strips` may have them (a circle of
+    10⁶ corners turns by 2.5e-16 of its size² at each), and an ear on one has zero area and is
+    dropped as such.
     """
     p = vertices[faces]
     area_vec = newell_normal(vertices, faces)
@@ -52,7 +57,8 @@ def convex_planar(vertices: np.ndarray, faces: np.ndarray, diag: float) -> np.nd
     planar = (offset <= tolerances.PLANAR_QUAD * diag).all(axis=1) & (length > 0)
     e = np.roll(p, -1, axis=1) - p
     turn = np.einsum("kij,kj->ki", np.cross(e, np.roll(e, -1, axis=1)), n)
-    convex = (turn > tolerances.DEGENERATE_AREA * diag**2).all(axis=1)
+    eps = tolerances.DEGENERATE_AREA * diag**2
+    convex = (turn > eps).all(axis=1) if strict else (turn > -eps).all(axis=1)
     return planar & convex
 
 
@@ -84,9 +90,14 @@ def _ear_clip(vertices: np.ndarray, face: np.ndarray, diag: float) -> np.ndarray
     eps = tolerances.DEGENERATE_AREA * diag**2
     idx = list(face)
     tris = []
+    start = 0
     while len(idx) > 3:
         m = len(idx)
-        for k in range(m):
+        # the scan resumes after the last ear, so ears are cut all around the polygon in
+        # turn (every other corner per round, as :func:`_ear_strips` does), not all at one
+        # place, which would leave a fan of slivers
+        for step in range(m):
+            k = (start + step) % m
             a, b, c = idx[k - 1], idx[k], idx[(k + 1) % m]
             pa, pb, pc = vertices[a], vertices[b], vertices[c]
             if np.dot(np.cross(pb - pa, pc - pb), n_vec) <= eps:
@@ -101,6 +112,9 @@ def _ear_clip(vertices: np.ndarray, face: np.ndarray, diag: float) -> np.ndarray
                 continue
             tris.append((a, b, c))
             del idx[k]
+            # the corner after the ear now has index k: resume one further (its neighbourhood
+            # just changed; it comes round again next time)
+            start = (k + 1) % (m - 1)
             break
         else:  # no ear: give up on this polygon's shape and fan the rest
             tris.extend((idx[0], idx[j], idx[j + 1]) for j in range(1, len(idx) - 1))
@@ -109,8 +123,47 @@ def _ear_clip(vertices: np.ndarray, face: np.ndarray, diag: float) -> np.ndarray
     return np.asarray(tris, dtype=np.int64)
 
 
+#: A convex planar face with at most this many corners becomes a fan from its first corner;
+#: a larger one is cut by :func:`_ear_strips` (a fan of n corners is n slivers as long as the
+#: face, each meshed into as many elements as a triangle that long: 806,644 elements for one
+#: 10⁴-corner disc, issue 13).
+FAN_MAX_CORNERS = 8
+
+#: A face that is not planar and convex is ear-clipped in O(n²) Python steps: faces with more
+#: corners than this are refused at once (measured: 1,000 corners clip in 0.8 s, 10⁴ would
+#: take minutes).
+MAX_CLIPPED_CORNERS = 1000
+
+
+def _ear_strips(face: np.ndarray) -> np.ndarray:
+    """Triangulate a convex polygon by cutting off every other corner, level by level.
+
+    Level 0 cuts the ears ``(r0, r1, r2), (r2, r3, r4), ...`` of the ring ``r`` and keeps
+    ``r0, r2, r4, ...``; the next level does the same to what is left, until a triangle (or
+    nothing) remains. Every ear is three consecutive corners of a convex polygon, so the
+    triangles tile it with its winding; there are ``n − 2`` of them, the triangles of level
+    ``j`` span about ``2^(j+1)`` of the face's edges, and O(n) work in all. Unlike a fan, most
+    triangles are small near the boundary and only a few span the face.
+
+    Returns ``(n − 2, 3)`` int64 corner indices.
+    """
+    out = []
+    ring = np.asarray(face, dtype=np.int64)
+    while len(ring) > 3:
+        m = len(ring)
+        # ears (r[2i], r[2i+1], r[2i+2 mod m]) for i < m // 2; the even corners stay (for
+        # an odd m the last, r[m-1], closes the ring)
+        i = 2 * np.arange(m // 2)
+        out.append(np.stack([ring[i], ring[i + 1], ring[(i + 2) % m]], axis=1))
+        ring = ring[0::2]
+    if len(ring) == 3:
+        out.append(ring[None, :])
+    return np.concatenate(out)
+
+
 def faces_to_polygons(
-    vertices: np.ndarray, flat: np.ndarray, counts: np.ndarray, diag: float
+    vertices: np.ndarray, flat: np.ndarray, counts: np.ndarray, diag: float,
+    path: str | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Turn faces of any corner count into triangles and planar convex quads.
 
@@ -123,14 +176,22 @@ def faces_to_polygons(
         Corners per face, each ≥ 3.
     diag : float
         Scene scale for the tolerances.
+    path : str, optional
+        The file, for the error message.
 
     Returns
     -------
     polygons : (Q, 4) int32
         ``-1`` in column 3 for triangles. A planar convex quad stays a quad; a non-planar or
         concave quad is split into two triangles along the diagonal through its reflex corner
-        (the 0–2 diagonal if neither is reflex); a convex planar n-gon (n ≥ 5) becomes a fan,
-        any other n-gon is ear-clipped.
+        (the 0–2 diagonal if neither is reflex); a convex planar n-gon (n ≥ 5) becomes a fan
+        up to ``FAN_MAX_CORNERS`` corners and ear strips (:func:`_ear_strips`) beyond; any
+        other n-gon is ear-clipped, up to ``MAX_CLIPPED_CORNERS`` corners.
+
+    Raises
+    ------
+    SceneError
+        A face that is not planar and convex with more than ``MAX_CLIPPED_CORNERS`` corners.
     face : (Q,) int64
         The input face each polygon came from (to carry its material), in increasing order.
     """
@@ -143,7 +204,7 @@ def faces_to_polygons(
         if n == 3:
             pieces.append((np.column_stack([f, np.full(len(f), -1)]), ids))
             continue
-        good = convex_planar(vertices, f, diag)
+        good = convex_planar(vertices, f, diag, strict=n <= FAN_MAX_CORNERS)
         if n == 4:
             pieces.append((f[good], ids[good]))
             bad, bad_ids = f[~good], ids[~good]
@@ -159,13 +220,24 @@ def faces_to_polygons(
             t2 = np.column_stack([r[:, 0], r[:, 2], r[:, 3], np.full(len(r), -1)])
             pieces.append((np.stack([t1, t2], axis=1).reshape(-1, 4), np.repeat(bad_ids, 2)))
             continue
-        fan_f, fan_ids = f[good], ids[good]
+        if n > FAN_MAX_CORNERS:
+            for face, fid in zip(f[good], ids[good], strict=True):
+                tris = _ear_strips(face)
+                pieces.append((np.column_stack([tris, np.full(len(tris), -1)]),
+                               np.full(len(tris), fid)))
+        fan_f, fan_ids = (f[good], ids[good]) if n <= FAN_MAX_CORNERS else (f[:0], ids[:0])
         j = np.arange(1, n - 1)
         fan = np.stack(
             [np.repeat(fan_f[:, :1], n - 2, axis=1), fan_f[:, j], fan_f[:, j + 1]], axis=2
         )
         fan = np.concatenate([fan, np.full(fan.shape[:2] + (1,), -1)], axis=2)
         pieces.append((fan.reshape(-1, 4), np.repeat(fan_ids, n - 2)))
+        if n > MAX_CLIPPED_CORNERS and not good.all():
+            fid = int(ids[~good][0])
+            raise SceneError(
+                f"face {fid + 1} has {n} corners and is not planar and convex: more than "
+                f"{MAX_CLIPPED_CORNERS} corners are only triangulated for convex planar faces; "
+                "split it into smaller faces", path)
         for face, fid in zip(f[~good], ids[~good], strict=True):
             tris = _ear_clip(vertices, face, diag)
             tris4 = np.column_stack([tris, np.full(len(tris), -1)])

@@ -121,6 +121,10 @@ class Scene:
     back_material : (Q,) int32 or None
         The material of each polygon's back, ``-1`` for a one-sided polygon (light leaves and
         arrives on its normal's side only, the default). ``None``: every polygon one-sided.
+    warnings : tuple of str
+        One line per change made to the input while loading (zero-area and duplicated faces
+        dropped, coplanar overlaps resolved), each naming the file; also issued as
+        :class:`daskrad.errors.DaskradWarning`.
     """
 
     path: str
@@ -134,6 +138,7 @@ class Scene:
     dropped_degenerate: int = 0
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
     back_material: np.ndarray | None = None
+    warnings: tuple[str, ...] = ()
 
     @property
     def two_sided(self) -> np.ndarray:

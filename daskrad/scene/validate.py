@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 
 from daskrad import tolerances
-from daskrad.errors import SceneError
+from daskrad.errors import DaskradWarning, SceneError
 from daskrad.scene.overlap import coplanar_overlaps
 from daskrad.scene.polygons import convex_planar, faces_to_polygons, polygon_area
 from daskrad.scene.types import Camera, DirectionalLights, Materials, PointLights, Scene
@@ -32,6 +32,15 @@ def check_vertices(vertices, path: str) -> np.ndarray:
         raise SceneError(
             f"{int(bad.sum())} vertices have NaN or infinite coordinates "
             f"(first: vertex {i + 1} = {v[i].tolist()})",
+            path,
+        )
+    far = ~(np.abs(v) <= tolerances.MAX_COORDINATE).all(axis=1)
+    if far.any():
+        i = int(np.flatnonzero(far)[0])
+        raise SceneError(
+            f"{int(far.sum())} vertices have coordinates beyond ±{tolerances.MAX_COORDINATE:g}, "
+            f"where lengths to the fourth power overflow (first: vertex {i + 1} = "
+            f"{v[i].tolist()})",
             path,
         )
     return v
@@ -116,18 +125,120 @@ def reversed_twins(vertices: np.ndarray, polygons: np.ndarray) -> np.ndarray:
     return out
 
 
-def _refuse_coplanar_overlaps(v, poly, origin, diag, path: str) -> None:
-    """One line naming the first pair of faces (1-based, in file order) that z-fight."""
+def _overlap_message(pairs, origin, more: str) -> str:
+    a, b = sorted(int(origin[i]) + 1 for i in pairs[0])
+    extra = f" ({len(pairs) - 1} more such pairs)" if len(pairs) > 1 else ""
+    return (f"faces {a} and {b} lie in one plane, face the same way and overlap, so they would "
+            f"z-fight{extra}: {more}")
+
+
+def _resolve_coplanar_overlaps(v, poly, pm, origin, ke, diag, path: str):
+    """Lift every face that lies on a larger face in one plane (issue 16: decals, rugs).
+
+    For each overlapping pair (:func:`coplanar_overlaps`) the larger face is below, the smaller
+    on top (equal areas: the later face in the file, as a painter would). A face's level is one
+    more than the highest level of the faces it lies on; it moves ``level · DECAL_LIFT · diag``
+    along its unit normal, on new vertices (the one below keeps its own). Refused, naming two
+    faces: an emitting face under another (its covered part would still emit, through the
+    back of the one-sided face on top: cut it out instead), stacks deeper than
+    ``MAX_DECAL_DEPTH``, and overlaps that remain after lifting.
+
+    Returns ``(vertices, polygons, message)``; ``message`` is ``None`` when nothing overlaps.
+    """
     pairs = coplanar_overlaps(v, poly, diag)
     if len(pairs) == 0:
-        return
-    a, b = sorted(int(origin[i]) + 1 for i in pairs[0])
-    more = f" ({len(pairs) - 1} more such pairs)" if len(pairs) > 1 else ""
-    raise SceneError(
-        f"faces {a} and {b} lie in one plane, face the same way and overlap, so they would "
-        f"z-fight{more}: remove one, cut it out of the other, or lift it off the plane",
-        path,
-    )
+        return v, poly, None
+    area = polygon_area(v, poly)
+    a, b = pairs[:, 0], pairs[:, 1]                       # a < b: a comes first in the file
+    a_below = area[a] >= area[b]
+    below, above = np.where(a_below, a, b), np.where(a_below, b, a)
+    lit = (ke[pm[below]] > 0).any(axis=1)
+    if lit.any():
+        k = int(np.flatnonzero(lit)[0])
+        raise SceneError(
+            f"face {int(origin[above[k]]) + 1} lies on emitting face {int(origin[below[k]]) + 1} "
+            "in one plane, facing the same way: the covered part would still emit through it; "
+            "cut it out of the emitting face", path)
+    # longest chains below each face; below → above always goes to a smaller face (or a later
+    # one of equal area), so there is no cycle and depth + 1 passes settle it
+    level = np.zeros(len(poly), np.int64)
+    for _ in range(tolerances.MAX_DECAL_DEPTH + 1):
+        new = level.copy()
+        np.maximum.at(new, above, level[below] + 1)
+        if (new == level).all():
+            break
+        level = new
+    if level.max() > tolerances.MAX_DECAL_DEPTH:
+        raise SceneError(_overlap_message(pairs, origin, f"faces stack more than "
+                                          f"{tolerances.MAX_DECAL_DEPTH} deep in one plane, "
+                                          "which is no decal: remove the overlaps"), path)
+    lifted = np.flatnonzero(level > 0)
+    corners = np.where(poly[lifted] >= 0, poly[lifted], poly[lifted, 2:3])  # (k, 4)
+    p = v[corners]
+    normal = np.where((poly[lifted, 3] >= 0)[:, None],
+                      np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1]),
+                      np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    shift = (level[lifted] * tolerances.DECAL_LIFT * diag)[:, None] * normal
+    new_v = (p + shift[:, None, :]).reshape(-1, 3)
+    new_idx = (len(v) + np.arange(4 * len(lifted))).reshape(-1, 4)
+    poly = poly.copy()
+    poly[lifted] = np.where(poly[lifted] >= 0, new_idx, -1)
+    v = np.concatenate([v, new_v])
+    left = coplanar_overlaps(v, poly, diag)
+    if len(left):
+        raise SceneError(_overlap_message(left, origin, "they still overlap after lifting the "
+                                          "smaller faces: remove one, or cut it out of the "
+                                          "other"), path)
+    first = int(np.flatnonzero(level[above] == 1)[0])
+    deepest = int(level.max())
+    message = (f"{path}: {len(lifted)} faces lie on larger faces in one plane (coplanar "
+               f"overlaps, first face {int(origin[above[first]]) + 1} on face "
+               f"{int(origin[below[first]]) + 1}): lifted {tolerances.DECAL_LIFT:g} × the scene "
+               "diagonal off the plane along their normals"
+               + (f" ({deepest} levels where stacked)" if deepest > 1 else "")
+               + " so that they show")
+    return v, poly, message
+
+
+def _check_magnitudes(pm, ke, names, points, directional, diag, path: str) -> None:
+    """Refuse light levels beyond ``tolerances.MAX_LIGHT`` and point lights beyond
+    ``tolerances.MAX_COORDINATE``: nothing the solver and the outputs form can overflow.
+
+    ``pm : (Q,)`` polygon materials, ``ke : (M, 3)`` radiance, ``diag`` the scene's scale.
+    Products are formed with overflow allowed (an inf compares as too large) so that no numpy
+    warning is printed before the one line.
+    """
+    limit = tolerances.MAX_LIGHT
+    far = ~(np.abs(points.position) <= tolerances.MAX_COORDINATE).all(axis=1)
+    if far.any():
+        i = int(np.flatnonzero(far)[0])
+        raise SceneError(f"point light {i + 1} at {points.position[i].tolist()} lies beyond "
+                         f"±{tolerances.MAX_COORDINATE:g}", path)
+    used = np.zeros(len(ke), bool)
+    used[pm] = True
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        tables = (
+            (np.where(used[:, None], np.pi * ke, 0.0), "material {name!r}: Ke", ke,
+             "exitance π·Ke"),
+            (points.intensity / diag**2, "point light {i}: intensity", points.intensity,
+             "its irradiance at the scene's size, intensity/diagonal²,"),
+            (directional.irradiance, "directional light {i}: irradiance",
+             directional.irradiance, "irradiance"),
+        )
+        total = sum(float(t.sum()) for t, *_ in tables)
+    for scale, what, value, formula in tables:
+        bad = ~(scale <= limit)
+        if bad.any():
+            row, ch = np.argwhere(bad)[0]
+            what = what.format(name=names[row] if len(names) > row else "", i=row + 1)
+            raise SceneError(
+                f"{what} {'RGB'[ch]} = {value[row, ch]:.3g} is out of range: {formula} "
+                f"{scale[row, ch]:.3g} W/m² is beyond {limit:g} (images and the store hold "
+                "float32)", path)
+    if not total <= limit:
+        raise SceneError(f"the lights together are out of range: {total:.3g} W/m² is beyond "
+                         f"{limit:g} (images and the store hold float32)", path)
 
 
 def _rgb_table(values, m: int, name: str, path: str) -> np.ndarray:
@@ -225,7 +336,11 @@ def scene_from_arrays(
     Back-to-back copies (the opposite winding at the same place) are one two-sided face: the
     first is kept with the second's material for its back (``Scene.back_material``).
     Two faces that lie in one plane, face the same way and overlap (beyond sharing an edge)
-    are refused, naming both faces: they z-fight (:mod:`daskrad.scene.overlap`).
+    would z-fight (:mod:`daskrad.scene.overlap`): the smaller is lifted off the plane so that
+    it shows (a decal; ``tolerances.DECAL_LIFT``), or the scene is refused naming both faces
+    when that cannot resolve it (an emitter under another face, stacks deeper than
+    ``tolerances.MAX_DECAL_DEPTH``). Every change is one line in ``Scene.warnings``, also
+    issued as a :class:`DaskradWarning`.
     A scene with no emitting polygon and no light with
     positive power is refused.
     """
@@ -288,9 +403,16 @@ def scene_from_arrays(
         directional_lights, DirectionalLights, ("direction", "irradiance"), path
     )
 
-    diag = scale_of(v, poly)
-    if not np.isfinite(diag**2):
-        raise SceneError("coordinates are too large (the bounding box overflows float64)", path)
+    if camera is not None:
+        for name in ("eye", "look_at"):
+            at = np.asarray(getattr(camera, name), dtype=np.float64)
+            if not (np.abs(at) <= tolerances.MAX_COORDINATE).all():
+                raise SceneError(f"camera {name} {at.tolist()} lies beyond "
+                                 f"±{tolerances.MAX_COORDINATE:g}", path)
+    diag = scale_of(v, poly)  # finite: check_vertices bounded every coordinate
+    if 0 < diag < tolerances.MIN_DIAGONAL:
+        raise SceneError(f"the scene is {diag:.3g} across, below {tolerances.MIN_DIAGONAL:g} "
+                         "(its tolerances would underflow): scale it up", path)
     shift = centre_of(v, poly, diag)
     if shift.any():   # every later step works relative to the scene's centre (issue 13)
         v = v - shift
@@ -316,13 +438,14 @@ def scene_from_arrays(
     dropped = int(degenerate.sum())
     if dropped == len(poly):
         raise SceneError(f"no faces in the scene (all {dropped} have zero area)", path)
+    notes: list[str] = []
     if dropped:
-        warnings.warn(f"{path}: dropped {dropped} zero-area faces", stacklevel=2)
+        notes.append(f"{path}: dropped {dropped} zero-area faces")
         poly, pm, origin = poly[~degenerate], pm[~degenerate], origin[~degenerate]
     repeated = duplicated_polygons(v, poly)
     if repeated.any():
-        warnings.warn(f"{path}: dropped {int(repeated.sum())} duplicated faces (same corners "
-                      "and winding as an earlier face; the first is kept)", stacklevel=2)
+        notes.append(f"{path}: dropped {int(repeated.sum())} duplicated faces (same corners "
+                     "and winding as an earlier face; the first is kept)")
         poly, pm, origin = poly[~repeated], pm[~repeated], origin[~repeated]
     # a face and its reverse at the same place are one two-sided surface: keep the front, its
     # material and the back's (issue 16: coincident twins fight in the item buffer and rays)
@@ -334,9 +457,14 @@ def scene_from_arrays(
         back[twin_of[twins]] = pm[twins]
         keep = ~twins
         poly, pm, origin, back = poly[keep], pm[keep], origin[keep], back[keep]
-        warnings.warn(f"{path}: {int(twins.sum())} pairs of coincident back-to-back faces "
-                      "made two-sided faces", stacklevel=2)
-    _refuse_coplanar_overlaps(v, poly, origin, diag, path)
+        notes.append(f"{path}: {int(twins.sum())} pairs of coincident back-to-back faces "
+                     "made two-sided faces")
+    v, poly, lifted = _resolve_coplanar_overlaps(v, poly, pm, origin, ke, diag, path)
+    if lifted:
+        notes.append(lifted)
+    for note in notes:
+        warnings.warn(note, DaskradWarning, stacklevel=2)
+    _check_magnitudes(pm, ke, names, points, directional, diag, path)
 
     emits = (ke[pm] > 0).any()
     lit = (points.intensity > 0).any() or (directional.irradiance > 0).any()
@@ -359,4 +487,5 @@ def scene_from_arrays(
         dropped_degenerate=dropped,
         origin=shift,
         back_material=np.ascontiguousarray(back, dtype=np.int32),
+        warnings=tuple(notes),
     )

@@ -99,15 +99,30 @@ SLIVER = ([[0.2, 0.3, 0.5], [0.5, 0.3, 0.5 + 6e-7], [0.8, 0.3, 0.5]],   # 0.6 lo
 #: floor and two faces, a non-manifold edge.
 FIN = ([[0.5, 0, 0.2], [0.5, 0, 0.8], [0.5, 0.4, 0.8], [0.5, 0.4, 0.2]],
        [[0, 1, 2, 3], [3, 2, 1, 0]])
-#: A "rug" lying exactly in the floor's plane, overlapping a quarter of it. It z-fights (the
-#: hidden copy shoots and receives nothing: furnace error 50 % measured before it was refused),
-#: so the scene is refused (daskrad/scene/overlap.py): :func:`coplanar_overlap_scene`.
+#: A "rug" lying exactly in the floor's plane, overlapping a quarter of it. As such it would
+#: z-fight (the hidden copy shoots and receives nothing: furnace error 50 % measured before
+#: issue 7 refused it). Since issue 16 the smaller face is lifted off the plane (a decal,
+#: daskrad/scene/validate.py), unless the face under it emits: in the furnace box every face
+#: emits, so :func:`coplanar_overlap_scene` is still refused; :func:`rug_scene` is resolved.
 RUG = ([[0.1, 0, 0.1], [0.1, 0, 0.6], [0.6, 0, 0.6], [0.6, 0, 0.1]], [[0, 1, 2, 3]])
 
 
 def coplanar_overlap_scene():
-    """The furnace box with :data:`RUG`: raises the SceneError that refuses it."""
+    """The furnace box with :data:`RUG`: raises the SceneError that refuses it (the floor
+    under the rug emits)."""
     return box_with(*RUG, path="<rug>")
+
+
+def rug_scene():
+    """The closed unit box lit by its ceiling (exitance 1, everything reflects 0.5) with the
+    :data:`RUG` in the floor's plane: the rug is lifted ``DECAL_LIFT`` of the diagonal."""
+    b = box_scene(diffuse=RHO, emission_per_face=[0, 0, 0, KE, 0, 0], subdivisions=2)
+    verts = np.concatenate([b.vertices, np.array(RUG[0], float)])
+    polys = np.concatenate([b.polygons, np.array(RUG[1]) + len(b.vertices)])
+    mat = np.concatenate([b.polygon_material, [6]])
+    emission = np.zeros((7, 3))
+    emission[3] = KE
+    return scene_from_arrays(verts, polys, mat, np.full((7, 3), RHO), emission, path="<rug>")
 
 
 def t_junction_box(rho=RHO, ke=KE):
@@ -441,3 +456,87 @@ def accumulation_drift(n_shots: int, subdivisions: int, method: str = "analytic"
 
 def copy_tree(src: Path, dst: Path) -> None:
     shutil.copytree(src, dst, dirs_exist_ok=True)
+
+
+# --- 7. big inputs (issue 13) ---------------------------------------------------------------
+
+def disc_obj(directory: Path, n: int, star: bool = False) -> Path:
+    """An OBJ: one face of ``n`` corners on the unit circle in the floor plane ``y = 0``,
+    facing up (a star alternating radii 1 and 0.9 when ``star``), under a 2 × 2 lamp at
+    ``y = 2`` facing down."""
+    a = np.linspace(0.0, 2.0 * math.pi, n, endpoint=False)
+    r = np.where(np.arange(n) % 2, 0.9, 1.0) if star else np.ones(n)
+    directory.mkdir(parents=True, exist_ok=True)
+    (directory / "disc.mtl").write_text("newmtl lamp\nKd 0.5 0.5 0.5\nKe 1 1 1\n"
+                                        "newmtl floor\nKd 0.5 0.5 0.5\n")
+    lines = ["mtllib disc.mtl", "usemtl floor"]
+    lines += [f"v {x:.17g} 0 {z:.17g}" for x, z in zip(r * np.cos(a), -r * np.sin(a), strict=True)]
+    lines += ["v -1 2 -1", "v 1 2 -1", "v 1 2 1", "v -1 2 1"]
+    lines += ["f " + " ".join(str(i + 1) for i in range(n)), "usemtl lamp",
+              f"f {n + 1} {n + 4} {n + 3} {n + 2}"]
+    path = directory / "disc.obj"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def big_polygon_case(directory: Path, n: int = 10_000) -> list[Result]:
+    """Load and mesh (default sizes) a convex face of ``n`` corners: time, element count and
+    area against the exact ``n/2 · sin(2π/n)`` (measured before issue 13: 806,644 elements
+    and 462 s for ``n = 10⁴``)."""
+    import time
+
+    from daskrad.scene import load_scene
+
+    path = disc_obj(directory, n)
+    start = time.perf_counter()
+    scene = load_scene(path)
+    h = build_hierarchy(scene)
+    seconds = time.perf_counter() - start
+    disc = scene.polygon_material[h.elem_polygon] == 0   # material rows in order of first use
+    area = float(h.elem_area[disc].sum())
+    exact = 0.5 * n * math.sin(2.0 * math.pi / n)
+    name = f"polygon of {n:,} corners"
+    return [
+        Result(name, "elements per corner", float(disc.sum()) / n, 2.0,
+               note=f"{int(disc.sum()):,} elements"),
+        Result(name, "meshed area vs exact (relative)", abs(area / exact - 1.0), 1e-12),
+        Result(name, "seconds to load and mesh", seconds, 60.0),
+    ]
+
+
+def coplanar_soup_case(n: int = 100_000) -> list[Result]:
+    """:func:`daskrad.scene.overlap.coplanar_overlaps` on ``n`` triangles tiling one plane (no
+    overlap) and on ``n`` small triangles scattered in one plane (measured before issue 13:
+    10,000 took 14.6 s, 100,000 more than 300 s)."""
+    import time
+
+    from daskrad.scene.overlap import coplanar_overlaps
+
+    k = int(math.ceil(math.sqrt(n / 2)))
+    i, j = np.divmod(np.arange(k * k), k)
+    corner = np.column_stack([i / k, j / k, np.zeros(k * k)])
+    d = 1.0 / k
+    v = np.concatenate([corner, corner + [d, 0, 0], corner + [d, d, 0], corner + [0, d, 0]])
+    m = np.arange(k * k)
+    tiles = np.concatenate([np.stack([m, m + k * k, m + 2 * k * k], axis=1),
+                            np.stack([m, m + 2 * k * k, m + 3 * k * k], axis=1)])[:n]
+    rng = np.random.default_rng(13)
+    centre = rng.random((n, 2))
+    angle = rng.random(n)[:, None] * 2 * math.pi + np.array([0.0, 2.1, 4.2])
+    pts = centre[:, None, :] + 1e-3 * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    scattered = np.concatenate([pts.reshape(-1, 2), np.zeros((3 * n, 1))], axis=1)
+    out = []
+    for name, verts, tris in ((f"{n:,} triangles tiling a plane", v, tiles),
+                              (f"{n:,} small triangles scattered in a plane", scattered,
+                               np.arange(3 * n).reshape(n, 3))):
+        polys = np.column_stack([tris, np.full(len(tris), -1)])
+        diag = float(np.linalg.norm(verts.max(axis=0) - verts.min(axis=0)))
+        start = time.perf_counter()
+        pairs = coplanar_overlaps(verts, polys, diag)
+        seconds = time.perf_counter() - start
+        out.append(Result(name, "seconds for the coplanar-overlap check", seconds, 30.0,
+                          note=f"{len(pairs):,} overlapping pairs"))
+        if "tiling" in name:
+            out.append(Result(name, "overlapping pairs found in a tiling", float(len(pairs)),
+                              0.0))
+    return out
