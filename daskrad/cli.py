@@ -45,6 +45,24 @@ def _nonneg_float(text: str) -> float:
     return value
 
 
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if value != value or value in (float("inf"), float("-inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
+    return value
+
+
+def _vec3(text: str) -> tuple[float, float, float]:
+    parts = text.split(",")
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(abs(v) < float("inf") for v in values):
+        raise argparse.ArgumentTypeError(f"must be three finite numbers X,Y,Z, got {text}")
+    return values
+
+
 def _default(name: str) -> str:
     """``(default X)`` from :class:`~daskrad.settings.Settings`, where every default lives."""
     from daskrad.settings import Settings
@@ -132,8 +150,38 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     run.add_argument("--checkpoint-every", type=_positive_int,
                      help=f"batches between checkpoints into OUT.zarr "
                           f"{_default('checkpoint_every')}")
-    run.add_argument("--resume", action="store_true", help="continue from OUT.zarr's checkpoint")
+    run.add_argument("--resume", action="store_true",
+                     help="continue from OUT.zarr's checkpoint; a smaller --tolerance or a "
+                          "larger --max-iterations continues a finished store")
+    run.add_argument("--exposure", type=_finite_float, metavar="STOPS",
+                     help="PNG brightness in stops over the automatic exposure (default 0)")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+    render = commands.add_parser(
+        "render", help="a new image from a finished store: no direct pass, no solve")
+    render.add_argument("store", help="OUT.zarr written by daskrad run")
+    render.add_argument("-o", "--output", required=True,
+                        help="the image VIEW.exr (VIEW.png beside it)")
+    render.add_argument("--config", help="TOML whose [camera] replaces the run's camera")
+    render.add_argument("--eye", type=_vec3, metavar="X,Y,Z", help="camera position")
+    render.add_argument("--look-at", type=_vec3, metavar="X,Y,Z", help="point looked at")
+    render.add_argument("--up", type=_vec3, metavar="X,Y,Z", help="up direction")
+    render.add_argument("--fov", type=_positive_float, help="horizontal field of view, degrees")
+    render.add_argument("--width", type=_positive_int, help="image width (default: the run's)")
+    render.add_argument("--height", type=_positive_int,
+                        help="image height (default: the run's)")
+    render.add_argument("--spp", type=_positive_int, help="samples per pixel (default: the run's)")
+    render.add_argument("--exposure", type=_finite_float, metavar="STOPS",
+                        help="PNG brightness in stops over the automatic exposure (default 0)")
+    render.add_argument("-q", "--quiet", action="store_true", help="no timing line")
+
+    export = commands.add_parser(
+        "export", help="the mesh with its baked vertex radiance (PLY, glTF binary, OBJ)")
+    export.add_argument("store", help="OUT.zarr written by daskrad run")
+    export.add_argument("output", help="OUT.ply, OUT.glb or OUT.obj")
+    export.add_argument("--exposure", type=_finite_float, metavar="STOPS",
+                        help="vertex colours' brightness in stops over the automatic exposure "
+                             "(default 0; the linear radiance is written as it is)")
     return parser
 
 
@@ -147,6 +195,10 @@ def main(argv: list[str] | None = None) -> int:
             print(subcommands.info_text(args))
         elif args.command == "run":
             subcommands.run_command(args)
+        elif args.command == "render":
+            subcommands.render_command(args)
+        elif args.command == "export":
+            subcommands.export_command(args)
     except DaskradError as err:
         sys.stderr.write(f"daskrad: error: {err.line()}\n")
         return 2

@@ -27,3 +27,8 @@ class SceneError(DaskradError):
 
 class OptionError(DaskradError):
     """A command-line option has a bad value."""
+
+
+class StoreError(OptionError):
+    """The solution store given (``--resume``, ``daskrad render``, ``daskrad export``) is
+    missing, damaged, unfinished or was written from other inputs or settings."""

@@ -75,10 +75,25 @@ def report(scene: Scene, outputs: Outputs, settings: Settings, light: DirectLigh
            sol: Solution, image: Image, *, workers: int, seconds: dict,
            warnings: list[str]) -> dict:
     """The run report (written as ``OUT.json``): counts, convergence, timings, settings."""
+    from daskrad.mesh import default_sizes
+    from daskrad.mesh.refine import MIN_SIZE_DIVISOR
+
     h = light.mesh.hierarchy
+    patch_size, element_size = default_sizes(scene)
+    patch_size, element_size = (settings.patch_size or patch_size,
+                                settings.element_size or element_size)
+    cam = image.camera
     return {
         "scene": str(scene.path),
         "output": str(outputs.exr),
+        "store": str(outputs.store),
+        "versions": versions(),
+        # the sizes used, the automatic ones resolved (settings keeps None for them)
+        "sizes": {"patch_size": patch_size, "element_size": element_size,
+                  "min_element_size": (settings.min_element_size
+                                       or element_size / MIN_SIZE_DIVISOR)},
+        "camera": {"eye": cam.eye, "look_at": cam.look_at, "up": cam.up, "fov": cam.fov,
+                   "width": cam.width, "height": cam.height},
         "counts": {"polygons": len(scene.polygons), "patches": h.n_patches,
                    "elements": h.n_elements, "vertices": len(h.vertices),
                    "emitters": int(scene.emitting.sum()),
@@ -101,6 +116,38 @@ def report(scene: Scene, outputs: Outputs, settings: Settings, light: DirectLigh
     }
 
 
+def versions() -> dict:
+    """The versions of Python, daskrad and the packages whose behaviour the result depends on."""
+    import platform
+    from importlib import metadata
+
+    from daskrad import __version__
+
+    out = {"python": platform.python_version(), "daskrad": __version__}
+    for name in ("numpy", "numba", "dask", "distributed", "zarr", "trimesh", "openexr"):
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def load(scene_path, config) -> tuple[Scene, list[str]]:
+    """Step 1's loading, with the warnings it raised (dropped faces) printed as daskrad
+    warnings and returned for the report."""
+    import warnings
+
+    from daskrad.scene import load_scene
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        scene = load_scene(scene_path, config)
+    said = [str(w.message) for w in caught if issubclass(w.category, UserWarning)]
+    for w in said:
+        warn(w)
+    return scene, said
+
+
 def warn(message: str) -> None:
     """One warning line on stderr."""
     print(f"daskrad: warning: {message}", file=sys.stderr)
@@ -115,9 +162,10 @@ def not_converged(sol: Solution, settings: Settings) -> str | None:
             f"{settings.tolerance:g}); the image adds an ambient term")
 
 
-def write(outputs: Outputs, image: Image, report: dict) -> None:
-    """Step 5: the EXR (float32 linear radiance), the tone-mapped PNG and the JSON report."""
+def write(outputs: Outputs, image: Image, report: dict, exposure: float = 0.0) -> None:
+    """Step 5: the EXR (float32 linear radiance), the tone-mapped PNG (``exposure`` stops over
+    the automatic exposure) and the JSON report."""
     write_exr(outputs.exr, image.pixels)
-    write_png(outputs.png, image.pixels)
+    write_png(outputs.png, image.pixels, stops=exposure)
     write_report(outputs.json, report)
 

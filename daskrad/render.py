@@ -380,6 +380,30 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
     """
     mesh = light.mesh
     h, reflectance = mesh.hierarchy, mesh.reflectance
+    indirect, direct_v = vertex_split(light, sol)
+    ctx = RenderContext(grid=mesh.grid, tri_verts=mesh.tri_verts, tri_element=mesh.tri_element,
+                        elem_normal=h.elem_normal, vertex_radiance=indirect + direct_v,
+                        camera=cam, spp=settings.spp)
+    mats, mat = scene.materials, h.elem_material
+    return perpixel_context(
+        ctx, h.elem_verts, vertex_indirect=indirect, vertex_direct=direct_v,
+        elem_reflectance=reflectance, elem_emission=mats.emission[mat],
+        elem_specular=mats.specular[mat], elem_shininess=mats.shininess[mat],
+        elem_mirror=mats.mirror[mat],
+        lights=(direct.lights_of(light.context)
+                if light.irradiance is not None and light.context is not None else None),
+        rdiff=settings.rdiff if settings.per_pixel else None,
+        mirror_depth=settings.mirror_depth, diagonal=scene.diagonal)
+
+
+def vertex_split(light: DirectLight, sol: Solution) -> tuple[np.ndarray, np.ndarray]:
+    """``(indirect, direct)``, each ``(V, 3) float64`` radiance: vertex radiance split into
+    the part interpolated across elements (indirect light and the ambient term of an
+    unconverged solution) and the direct part ``(E + ρH) / π``, exact at every vertex (zero
+    without gathered light: then it is all in ``indirect``). T-vertices take both from their
+    edge (:func:`~daskrad.mesh.refine.resolve_tvertices`)."""
+    mesh = light.mesh
+    h, reflectance = mesh.hierarchy, mesh.reflectance
     amb = ambient(h, reflectance, sol.unshot)
     H = light.irradiance
     if H is None:
@@ -391,21 +415,8 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
         direct_v = (direct.vertex_reflectance(h, mesh.emission)
                     + direct.vertex_reflectance(h, reflectance) * H)
         indirect = vertex_average(h, sol.radiosity - sol.direct + reflectance * amb)
-    indirect = resolve_tvertices(indirect, light.tvertices) / math.pi
-    direct_v = resolve_tvertices(direct_v, light.tvertices) / math.pi
-    ctx = RenderContext(grid=mesh.grid, tri_verts=mesh.tri_verts, tri_element=mesh.tri_element,
-                        elem_normal=h.elem_normal, vertex_radiance=indirect + direct_v,
-                        camera=cam, spp=settings.spp)
-    mats, mat = scene.materials, h.elem_material
-    return perpixel_context(
-        ctx, h.elem_verts, vertex_indirect=indirect, vertex_direct=direct_v,
-        elem_reflectance=reflectance, elem_emission=mats.emission[mat],
-        elem_specular=mats.specular[mat], elem_shininess=mats.shininess[mat],
-        elem_mirror=mats.mirror[mat],
-        lights=(direct.lights_of(light.context)
-                if H is not None and light.context is not None else None),
-        rdiff=settings.rdiff if settings.per_pixel else None,
-        mirror_depth=settings.mirror_depth, diagonal=scene.diagonal)
+    return (resolve_tvertices(indirect, light.tvertices) / math.pi,
+            resolve_tvertices(direct_v, light.tvertices) / math.pi)
 
 
 @dataclass(frozen=True)
@@ -419,12 +430,15 @@ class Image:
     ambient : (3,) float64
         The ambient term added for an unconverged solution (W/m², Cohen et al.).
     seconds : float
+    vertex_direct : (V, 3) float64 or None
+        The direct part of ``context.vertex_radiance`` (:func:`vertex_split`).
     """
 
     pixels: np.ndarray
     context: RenderContext
     ambient: np.ndarray
     seconds: float = 0.0
+    vertex_direct: np.ndarray | None = None
 
     @property
     def camera(self) -> Camera:
@@ -443,12 +457,19 @@ def image(scene: Scene, light: DirectLight, sol: Solution, settings: Settings, e
     ``executor`` (``tile-…`` futures; default this process)."""
     t = time.perf_counter()
     ctx = context(scene, light, sol, settings, cam or camera(scene, settings))
+    return Image(pixels=pixels(ctx, executor), context=ctx,
+                 ambient=ambient(light.mesh.hierarchy, light.mesh.reflectance, sol.unshot),
+                 seconds=time.perf_counter() - t, vertex_direct=vertex_split(light, sol)[1])
+
+
+def pixels(ctx: RenderContext, executor=None) -> np.ndarray:
+    """``(H, W, 3) float64``: the image of ``ctx``, tile by tile on ``executor`` (``tile-…``
+    futures; default this process). The same bits either way, and from a context read back
+    from a store (``daskrad render``)."""
     parts = tiles(ctx.camera.width, ctx.camera.height)
-    pixels = np.zeros((ctx.camera.height, ctx.camera.width, 3))
+    out = np.zeros((ctx.camera.height, ctx.camera.width, 3))
     done = (executor.tiles(ctx, parts) if executor is not None
             else [render_tile(ctx, rows, cols) for rows, cols in parts])
     for (rows, cols), tile in zip(parts, done, strict=True):
-        pixels[rows, cols] = tile
-    return Image(pixels=pixels, context=ctx,
-                 ambient=ambient(light.mesh.hierarchy, light.mesh.reflectance, sol.unshot),
-                 seconds=time.perf_counter() - t)
+        out[rows, cols] = tile
+    return out

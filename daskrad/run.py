@@ -14,7 +14,6 @@ dashboard observe the solve (``on_batch``); they never change what it computes.
 
 from __future__ import annotations
 
-import math
 import time
 from pathlib import Path
 from typing import NamedTuple
@@ -28,7 +27,6 @@ from daskrad.distributed.store import Store
 from daskrad.mesh import Hierarchy
 from daskrad.preprocess import preprocess
 from daskrad.progress import Bar
-from daskrad.scene import load_scene
 from daskrad.settings import Settings
 
 
@@ -41,11 +39,11 @@ def run(scene_path: str | Path, out: str | Path, settings: Settings, progress: b
     outputs = output.Outputs.of(out)
     settings.validate()
     seconds: dict[str, float] = {}
-    t = time.perf_counter()
-    scene = load_scene(scene_path, config)                                        # 1
+    t = start = time.perf_counter()
+    scene, warnings = output.load(scene_path, config)                             # 1
     if settings.workers is None:
         settings = settings.replace(workers=auto_workers(scene, settings))
-    store = Store(outputs.store, settings, resume=resume)
+    store = Store(outputs.store, settings, resume=resume, scene=scene)
     ex = executor or executor_for(settings, store)
     try:
         store.open()           # a new store, or the checkpoint to resume from
@@ -65,17 +63,18 @@ def run(scene_path: str | Path, out: str | Path, settings: Settings, progress: b
         bar.close()
         seconds["solve"], t = time.perf_counter() - t, time.perf_counter()
         image = render.image(scene, light, sol, settings, ex, camera)             # 4
-        store.finish(image.context.vertex_radiance * math.pi)
+        store.finish(image)
         seconds["render"], t = time.perf_counter() - t, time.perf_counter()
     finally:
         ex.close()
-    warnings = [w for w in (output.unlit_warning(scene, light, sol),
-                            output.not_converged(sol, settings)) if w]
-    for w in warnings:
+    late = [w for w in (output.unlit_warning(scene, light, sol),
+                        output.not_converged(sol, settings)) if w]
+    for w in late:
         output.warn(w)
+    seconds["total"] = time.perf_counter() - start
     report = output.report(scene, outputs, settings, light, sol, image, workers=ex.workers,
-                           seconds=seconds, warnings=warnings)
-    output.write(outputs, image, report)                                          # 5
+                           seconds=seconds, warnings=warnings + late)
+    output.write(outputs, image, report, settings.exposure)                       # 5
     return report
 
 
