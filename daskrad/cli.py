@@ -1,4 +1,5 @@
-"""The ``daskrad`` command line: argument parsing and error reporting, no logic (DESIGN §5)."""
+"""The ``daskrad`` command line: argument parsing and error reporting, no logic
+(docs/design.md §5)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from daskrad.errors import DaskradError
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line on stderr and exit code 2 (DESIGN §7)."""
+    """argparse, but a usage error is one line on stderr and exit code 2 (docs/design.md §7)."""
 
     def error(self, message: str):  # noqa: D401 - argparse API
         sys.stderr.write(f"daskrad: error: {message} (see 'daskrad --help')\n")

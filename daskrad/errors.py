@@ -1,4 +1,4 @@
-"""User errors: the ones a user can cause and fix (DESIGN §7).
+"""User errors: the ones a user can cause and fix (docs/design.md §7).
 
 The CLI turns a :class:`DaskradError` into one line on stderr and exit code 2, never a traceback.
 """

@@ -1,4 +1,4 @@
-"""Step 5, output: the HDR image, its PNG preview and the run report (DESIGN §7).
+"""Step 5, output: the HDR image, its PNG preview and the run report (docs/design.md §7).
 
 :class:`Outputs` names every file a run writes, from the ``-o OUT.exr`` the user gave, and is
 checked before anything is loaded or written; :func:`write` writes the image files and the

@@ -4,7 +4,7 @@ Image values are **radiance** ``L = B / π`` (W·m⁻²·sr⁻¹ of the scene's 
 compare directly with a path tracer's output. Surfaces are one-sided: a ray that reaches the back
 of a face sees black, as in Mitsuba and pbrt.
 
-Camera convention (DESIGN §6): ``forward = normalize(look_at − eye)``,
+Camera convention (docs/design.md §6): ``forward = normalize(look_at − eye)``,
 ``right = normalize(forward × up)``, ``true_up = right × forward``; pixel column ``x`` grows along
 ``right``, row 0 is the top of the image; ``fov`` is horizontal.
 
@@ -118,7 +118,7 @@ def default_camera(bounds: np.ndarray, width: int = 256, height: int = 256,
 
 
 def camera_frame(camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(forward, right, true_up)``, unit vectors of the DESIGN §6 convention."""
+    """``(forward, right, true_up)``, unit vectors of the docs/design.md §6 convention."""
     forward = np.asarray(camera.look_at, float) - np.asarray(camera.eye, float)
     forward /= np.linalg.norm(forward)
     right = np.cross(forward, np.asarray(camera.up, float))

@@ -1,4 +1,4 @@
-"""The pipeline on one screen, the paper's five steps (DESIGN §1).
+"""The pipeline on one screen, the paper's five steps (docs/design.md §1).
 
 1. preprocess: load and triangulate the scene, mesh it into polygons → patches → elements,
    build the voxel grid;

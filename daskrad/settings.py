@@ -1,4 +1,4 @@
-"""Run settings: every option of ``daskrad run`` with its default, stated once (DESIGN §7).
+"""Run settings: every option of ``daskrad run`` with its default, stated once (docs/design.md §7).
 
 ``None`` means "derived from the scene" (sizes follow the scene's scale). :meth:`Settings.
 validate` checks every value against its range and the method registries before a run loads

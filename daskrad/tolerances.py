@@ -25,7 +25,7 @@ AREA_SUM_RTOL = 1e-9
 EDGE_ANGLE_DEG = 1.0
 
 #: Receiving polygons are clipped against the plane ``HORIZON_EPS * diag`` above the shooter's
-#: tangent plane (hemisphere-base form factor, DESIGN §2), so a polygon coplanar with the
+#: tangent plane (hemisphere-base form factor, docs/design.md §2), so a polygon coplanar with the
 #: shooter (its own polygon, the floor it stands on) vanishes instead of rasterizing round-off.
 HORIZON_EPS = 1e-9
 

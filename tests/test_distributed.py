@@ -224,7 +224,8 @@ def test_loopback_cluster_script_and_scheduler_option(reference, tmp_path):
 
 
 def test_without_workers_option_small_scenes_stay_in_process():
-    # DESIGN §4: a cluster costs seconds a small scene does not need; a big one gets 2 workers
+    # docs/design.md §4: a cluster costs seconds a small scene does not need; a big one gets 2
+    # workers
     from daskrad.cli import build_parser
     from daskrad.commands import settings_from_args
     from daskrad.distributed import auto_workers

@@ -1,4 +1,4 @@
-"""Form factors against the exact answers of /work/shared/REFERENCES.md (DESIGN §2).
+"""Form factors against the exact answers of /work/shared/docs/references.md (docs/design.md §2).
 
 Error model for the hemisphere-base item buffer (used for every bound below). A pixel counts for
 an element when its centre lies inside the projected outline, so the count differs from the
@@ -35,7 +35,7 @@ UP = np.array([0.0, 0.0, 1.0])
 ORIGIN = np.zeros(3)
 
 
-# --- exact answers (REFERENCES.md) -------------------------------------------------------------
+# --- exact answers (docs/references.md) -----------------------------------------------------------
 
 def howell_parallel(a, b, c):
     x, y = a / c, b / c

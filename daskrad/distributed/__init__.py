@@ -29,7 +29,7 @@ AUTO_CLUSTER_ELEMENTS = 20_000
 
 
 def auto_workers(scene, settings) -> int:
-    """``--workers`` not given: 2 local workers, or 0 for a small scene (DESIGN §4)."""
+    """``--workers`` not given: 2 local workers, or 0 for a small scene (docs/design.md §4)."""
     from daskrad.mesh import default_sizes, polygon_areas
 
     size = settings.element_size or default_sizes(scene)[1]

@@ -1,5 +1,5 @@
 """The Dask executor: the same calls as :class:`~daskrad.distributed.executor.InProcess`,
-run as named futures on a cluster (DESIGN §4).
+run as named futures on a cluster (docs/design.md §4).
 
 Futures carry ids and ranges only; the geometry goes once into the store
 (:meth:`Store.put_context`) and each worker caches it (:mod:`daskrad.distributed.worker`).
@@ -7,7 +7,7 @@ Keys are ``formfactor-<generation>-<batch>-<part>-<run>``,
 ``direct-<generation>-<n>-<start>-<run>`` and ``tile-<generation>-<n>-<run>``: the dashboard
 groups them by their first word; the 8-hex run token keeps two runs on one cluster (or two
 runs of one test session) from sharing a key, since a key still held by the scheduler returns
-its old result (STACK.md).
+its old result (docs/stack.md).
 """
 
 from __future__ import annotations

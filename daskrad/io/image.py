@@ -19,8 +19,8 @@ def _atomic_target(path: Path) -> Path:
 def write_exr(path: str | Path, rgb: np.ndarray) -> None:
     """Write linear radiance ``rgb : (H, W, 3)`` as a float32 scanline OpenEXR with ZIP compression.
 
-    STACK.md: OpenEXR writes a non-C-contiguous array as garbage, silently, and refuses float64;
-    hence the explicit contiguous float32 copy.
+    docs/stack.md: OpenEXR writes a non-C-contiguous array as garbage, silently, and refuses
+    float64; hence the explicit contiguous float32 copy.
     """
     import OpenEXR
 
