@@ -1,4 +1,5 @@
-"""Direct light at points: point, directional and area lights with shadow rays (DESIGN §1 step 2).
+"""Direct light at points: point, directional and area lights with shadow rays
+(docs/design.md §1 step 2).
 
 One function, :func:`irradiance_one`, computes the irradiance ``H`` (W per unit area) arriving
 at a point ``p`` with unit normal ``n`` from every light, with shadows through the voxel grid;
@@ -49,7 +50,7 @@ def hash01(seed, k):
 @jit
 def lambert_polygon(px, py, pz, nx, ny, nz, corners, count):
     """Lambert's unoccluded form factor from the differential area ``(p, n)`` to the polygon
-    ``corners[:count] (count, 3)``, clipped to ``n · (x − p) ≥ 0`` (REFERENCES.md).
+    ``corners[:count] (count, 3)``, clipped to ``n · (x − p) ≥ 0`` (docs/references.md).
 
     Orientation is not checked here (the caller decides one-sidedness). The batch twin over
     elements is :func:`daskrad.kernels.lambert._lambert`, written out for speed.

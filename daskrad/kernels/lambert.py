@@ -1,4 +1,4 @@
-"""Lambert's contour formula: point-to-polygon form factors without occlusion (REFERENCES.md).
+"""Lambert's contour formula: point-to-polygon form factors without occlusion (docs/references.md).
 
 For a differential area at ``p`` with unit normal ``n`` and a planar polygon with corners
 ``v_i``, ``R_i = v_i - p``::
