@@ -214,6 +214,8 @@ def test_loopback_cluster_script_and_scheduler_option(reference, tmp_path):
         with urllib.request.urlopen(link.group(1) + "/daskrad", timeout=10) as r:
             page = r.read().decode()
         assert "relative unshot RMS" in page and "<svg" in page
+        # the phase with its progress bar (the last one: the tiles, all done)
+        assert "phase: rendering" in page and '<progress value="1.0000"' in page
     finally:
         os.killpg(proc.pid, signal.SIGTERM)
         try:

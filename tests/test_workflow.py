@@ -437,3 +437,41 @@ def test_automatic_sizes_are_reported_as_resolved(tmp_path, capsys):
     patch, element = default_sizes(load_scene(SCENE))
     sizes = json.loads(out.with_suffix(".json").read_text())["sizes"]
     assert sizes["patch_size"] == patch and sizes["element_size"] == element
+
+
+def test_the_dashboard_shows_each_phase_with_its_progress_from_the_start(tmp_path,
+                                                                         cluster_client):
+    from daskrad.distributed.dashboard import _phase_html
+    from daskrad.distributed.dask_executor import DaskExecutor
+    from daskrad.distributed.store import Store
+    from daskrad.run import run
+    from daskrad.settings import Settings
+
+    settings = Settings(element_size=80, patch_size=160, width=48, height=48, workers=2,
+                        max_iterations=64, dashboard="127.0.0.1:0")
+    out = tmp_path / "d.exr"
+    published = []
+    original = DaskExecutor.publish
+
+    def spy(self, key, value):
+        if key == "phase":
+            published.append(value)
+        original(self, key, value)
+
+    DaskExecutor.publish = spy
+    try:
+        executor = DaskExecutor(cluster_client, Store(out.with_suffix(".zarr"), settings))
+        assert published and published[0]["phase"] == "preprocessing"   # before any step
+        run(SCENE, out, settings, progress=False, executor=executor)
+    finally:
+        DaskExecutor.publish = original
+    names = [p["phase"] for p in published]
+    order = ["preprocessing", "direct light", "shooting", "rendering"]
+    assert [n for i, n in enumerate(names) if i == 0 or names[i - 1] != n] == order
+    assert all(0.0 <= p["fraction"] <= 1.0 for p in published)
+    for name in ("direct light", "rendering"):    # each phase ends at 100 %
+        assert [p for p in published if p["phase"] == name][-1]["fraction"] == 1.0
+    shooting = [p["fraction"] for p in published if p["phase"] == "shooting"]
+    assert shooting == sorted(shooting) and shooting[-1] > 0    # the bar only moves forward
+    page = _phase_html(published[-1])
+    assert "phase: rendering" in page and '<progress value="1.0000" max="1"' in page

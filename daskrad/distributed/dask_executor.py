@@ -29,6 +29,8 @@ from daskrad.formfactor import shooting
 
 #: Seconds between two counts of the cluster's workers.
 COUNT_SECONDS = 2.0
+#: Seconds between two phase messages of one phase for the dashboard page.
+PHASE_SECONDS = 0.5
 
 #: Custom dashboard page module (``/daskrad``), added to the scheduler's HTTP routes.
 ROUTES_MODULE = "daskrad.distributed.dashboard"
@@ -84,6 +86,9 @@ class DaskExecutor:
         self.stats = {"wait": 0.0, "tasks": 0}
         self._shoot = None                 # (generation, token) of the current geometry
         self._probed = False
+        self._phase = (None, -float("inf"))
+        # the dashboard page shows a phase from the first second: the mesh is built next
+        self.phase("preprocessing", force=True)
 
     # --- the executor interface -------------------------------------------------------------
 
@@ -91,6 +96,7 @@ class DaskExecutor:
         token = self.store.put_context("shoot", shoot_ctx)
         self._shoot = (generation, token)
         self._probe("shoot", token)
+        self.phase("shooting", 0.0, force=True)
 
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Batch:
         """Batch ``batch_no``, split into one task per worker so all of them work on it."""
@@ -116,7 +122,7 @@ class DaskExecutor:
                                key=f"tile-{generation}-{n}-{self.run}", pure=False)
             for n, (rows, cols) in enumerate(tiles)]
         self.stats["tasks"] += len(futures)
-        return self.client.gather(futures)
+        return self._gather("rendering", futures)
 
     def direct(self, ctx, ranges: list[tuple[int, int]]) -> list[np.ndarray]:
         """Direct light at vertex ranges as ``direct-<generation>-<n>`` futures, in order."""
@@ -128,11 +134,32 @@ class DaskExecutor:
                                key=f"direct-{generation}-{n}-{a}-{self.run}", pure=False)
             for n, (a, b) in enumerate(ranges)]
         self.stats["tasks"] += len(futures)
-        return self.client.gather(futures)
+        return self._gather("direct light", futures)
 
     def publish(self, key: str, value) -> None:
         """Progress for the ``/daskrad`` page (scheduler metadata, small JSON values)."""
         self.client.set_metadata(["daskrad", key], value)
+
+    def phase(self, name: str, fraction: float = 0.0, detail: str = "",
+              force: bool = False) -> None:
+        """The run's current phase and how far it is (``fraction`` in [0, 1]) for the page,
+        at most every ``PHASE_SECONDS`` within one phase unless ``force``."""
+        now = time.monotonic()
+        if not force and self._phase[0] == name and now - self._phase[1] < PHASE_SECONDS:
+            return
+        self._phase = (name, now)
+        self.publish("phase", {"phase": name, "fraction": round(float(fraction), 4),
+                               "detail": detail})
+
+    def _gather(self, name: str, futures: list) -> list:
+        """The futures' results in order, publishing the phase ``name`` as they complete."""
+        from distributed import as_completed
+
+        total = len(futures)
+        self.phase(name, 0.0, f"0 of {total} tasks", force=True)
+        for n, _ in enumerate(as_completed(futures), 1):
+            self.phase(name, n / total, f"{n} of {total} tasks", force=n == total)
+        return self.client.gather(futures)
 
     def close(self) -> None:
         if self.own_client:
