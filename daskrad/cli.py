@@ -155,7 +155,8 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
                      help="continue from OUT.zarr's checkpoint; a smaller --tolerance or a "
                           "larger --max-iterations continues a finished store")
     run.add_argument("--exposure", type=_finite_float, metavar="STOPS",
-                     help="PNG brightness in stops over the automatic exposure (default 0)")
+                     help=f"PNG brightness in stops over the automatic exposure "
+                          f"{_default('exposure')}")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
     render = commands.add_parser(
@@ -164,10 +165,14 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     render.add_argument("-o", "--output", required=True,
                         help="the image VIEW.exr (VIEW.png beside it)")
     render.add_argument("--config", help="TOML whose [camera] replaces the run's camera")
-    render.add_argument("--eye", type=_vec3, metavar="X,Y,Z", help="camera position")
-    render.add_argument("--look-at", type=_vec3, metavar="X,Y,Z", help="point looked at")
-    render.add_argument("--up", type=_vec3, metavar="X,Y,Z", help="up direction")
-    render.add_argument("--fov", type=_positive_float, help="horizontal field of view, degrees")
+    render.add_argument("--eye", type=_vec3, metavar="X,Y,Z",
+                        help="camera position (default: the run's camera, or --config's)")
+    render.add_argument("--look-at", type=_vec3, metavar="X,Y,Z",
+                        help="point looked at (default: the run's)")
+    render.add_argument("--up", type=_vec3, metavar="X,Y,Z", help="up direction (default: the "
+                                                                    "run's)")
+    render.add_argument("--fov", type=_positive_float,
+                        help="horizontal field of view, degrees (default: the run's)")
     render.add_argument("--width", type=_positive_int, help="image width (default: the run's)")
     render.add_argument("--height", type=_positive_int,
                         help="image height (default: the run's)")

@@ -156,6 +156,14 @@ def _delete_chunk(store: Path) -> str:
     return "radiosity is damaged"
 
 
+def _eight_changed_bytes(store: Path) -> str:
+    chunk = _slot(store) / "radiosity" / "c" / "0" / "0"
+    data = bytearray(chunk.read_bytes())
+    data[800:808] = bytes(255 - b for b in data[800:808])
+    chunk.write_bytes(bytes(data))
+    return "radiosity is damaged"
+
+
 def _nan_in_unshot(store: Path) -> str:
     chunk = _slot(store) / "unshot" / "c" / "0" / "0"
     data = bytearray(chunk.read_bytes())               # uncompressed float64
@@ -186,7 +194,7 @@ def _truncated_chunk(store: Path) -> str:
     return "cannot read internal/checkpoint"
 
 
-@pytest.mark.parametrize("damage", [_delete_chunk, _nan_in_unshot,
+@pytest.mark.parametrize("damage", [_delete_chunk, _eight_changed_bytes, _nan_in_unshot,
                                     _root_names_a_half_written_slot, _truncated_chunk])
 def test_a_damaged_checkpoint_is_refused_with_one_line(straight, tmp_path, capsys, damage):
     out = copy_run(straight, tmp_path)
@@ -223,6 +231,16 @@ def test_a_deleted_public_chunk_is_refused_by_render_and_repaired_by_resume(
     solve(capsys, out, "--tolerance", "0.01", "--resume")
     assert chunk.is_file()
     assert daskrad(capsys, "render", store, "-o", tmp_path / "view.exr")[0] == 0
+    # changed bytes in a compressed public chunk: refused too, then repaired the same way
+    chunk = store / "elements" / "radiosity" / "c" / "0" / "0"
+    data = bytearray(chunk.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    chunk.write_bytes(bytes(data))
+    code, _, err = daskrad(capsys, "render", store, "-o", tmp_path / "view2.exr")
+    one_line_error(code, err, "elements/radiosity")
+    solve(capsys, out, "--tolerance", "0.01", "--resume")
+    assert daskrad(capsys, "render", store, "-o", tmp_path / "view2.exr")[0] == 0
+    np.testing.assert_array_equal(read_exr(tmp_path / "view2.exr"), read_exr(straight))
 
 
 def test_the_store_builds_only_the_types_it_writes(straight, tmp_path, capsys):

@@ -1,4 +1,4 @@
-"""The solution store ``OUT.zarr`` (docs/design.md, "The store"): the cluster's shared memory
+"""The solution store ``OUT.zarr`` (docs/design.md §7, "The store"): the cluster's shared memory
 and the run's result, readable with ``xarray.open_datatree``.
 
 Only the client writes; workers open it read-only, so every chunk has one writer
@@ -275,7 +275,7 @@ class Store:
             self.group = zarr.open_group(self.path, mode="w")
             self.group.update_attributes({
                 "format": FORMAT, "daskrad": __version__,
-                "description": "daskrad radiosity solution (docs/design.md, 'The store')",
+                "description": "daskrad radiosity solution (docs/design.md §7, 'The store')",
                 "settings": _jsonable(self.settings.as_dict()), "inputs": self.inputs,
                 "generation": -1, "iteration": 0, "converged": False, "history": []})
         return self
