@@ -493,3 +493,25 @@ def test_the_dashboard_shows_each_phase_with_its_progress_from_the_start(tmp_pat
     assert shooting == sorted(shooting) and shooting[-1] > 0    # the bar only moves forward
     page = _phase_html(published[-1])
     assert "phase: rendering" in page and '<progress value="1.0000" max="1"' in page
+
+
+# --- 6. the design notes live in the repository --------------------------------------------------
+
+def test_every_design_note_the_code_cites_is_in_docs():
+    import re
+
+    sections = set(re.findall(r"^## (\d+)\. ", (REPO / "docs" / "design.md").read_text(), re.M))
+    files = [*sorted((REPO / "daskrad").rglob("*.py")), *sorted((REPO / "tests").glob("*.py")),
+             *sorted((REPO / "benchmarks").glob("*.py")), REPO / "README.md", REPO / "Makefile"]
+    cited = set()
+    for path in files:
+        text = path.read_text()
+        # the notes outside the repository, and the old names of these ones (spelt in two
+        # pieces so that this file does not contain them)
+        for gone in ("../" + "shared/", "DESIGN" + " §", "DESIGN" + ".md", "(STACK" + ".md",
+                     " STACK" + ".md", " REFERENCES" + ".md", "(REFERENCES" + ".md"):
+            assert gone not in text, (path, gone)
+        cited |= set(re.findall(r"docs/design\.md\s+§(\d+)", text))
+        for name in re.findall(r"docs/([a-z_]+\.(?:md|png))", text):
+            assert (REPO / "docs" / name).is_file(), (path, name)
+    assert cited and cited <= sections, cited - sections
