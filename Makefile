@@ -22,7 +22,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 # numba's on-disk cache does not notice an edit to a kernel that another file's kernel calls
-# (STACK.md), so every cached kernel is dropped whenever a kernel file is newer than this stamp.
+# (docs/stack.md), so every cached kernel is dropped whenever a kernel file is newer than this stamp.
 KERNELS := $(wildcard daskrad/kernels/*.py)
 NUMBA_STAMP := $(VENV)/.kernels
 $(NUMBA_STAMP): $(KERNELS) $(STAMP)

@@ -20,7 +20,7 @@ Model (two batches in flight, a batch split into ``P = min(C, K)`` tasks): per b
 ``t = max(K·s / P + f + q / P + p·(P − 1), K·a)`` with ``s`` kernel seconds per shot and ``a``
 client seconds per shot (measured at C = 1), a per-batch overhead ``f + q / P`` fitted to the
 C = 1 and C = 2 runs (``f`` fixed, ``q`` shared by the tasks: serializing result rows), and
-``p`` the scheduler's cost per extra task in flight (STACK.md: ~2 ms, a conservative figure).
+``p`` the scheduler's cost per extra task in flight (docs/stack.md: ~2 ms, a conservative figure).
 The client applies every shot in order, so once ``K·a`` exceeds the workers' time the run is
 client-bound and efficiency falls as ``s / (C·a)``. Rows for ``K = 8`` (the default,
 so at most 8 tasks per batch) and ``K = 2C`` (a batch grows with the cluster).
@@ -56,7 +56,7 @@ ELEMENT_SIZE = 7.0
 SHOTS = 96
 BATCH = 8
 REPEATS = 3
-#: Scheduler cost of one more task in flight, seconds (STACK.md: "many tasks in flight cost
+#: Scheduler cost of one more task in flight, seconds (docs/stack.md: "many tasks in flight cost
 #: ~2 ms each").
 TASK_COST = 0.002
 

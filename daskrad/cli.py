@@ -1,4 +1,5 @@
-"""The ``daskrad`` command line: argument parsing and error reporting, no logic (DESIGN §5)."""
+"""The ``daskrad`` command line: argument parsing and error reporting, no logic
+(docs/design.md §5)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from daskrad.errors import DaskradError, DaskradWarning
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line on stderr and exit code 2 (DESIGN §7)."""
+    """argparse, but a usage error is one line on stderr and exit code 2 (docs/design.md §7)."""
 
     def error(self, message: str):  # noqa: D401 - argparse API
         sys.stderr.write(f"daskrad: error: {message} (see 'daskrad --help')\n")
@@ -44,6 +45,24 @@ def _nonneg_float(text: str) -> float:
     if not (value >= 0 and value != float("inf")):
         raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
     return value
+
+
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if value != value or value in (float("inf"), float("-inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
+    return value
+
+
+def _vec3(text: str) -> tuple[float, float, float]:
+    parts = text.split(",")
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(abs(v) < float("inf") for v in values):
+        raise argparse.ArgumentTypeError(f"must be three finite numbers X,Y,Z, got {text}")
+    return values
 
 
 def _default(name: str) -> str:
@@ -140,8 +159,43 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     run.add_argument("--checkpoint-every", type=_positive_int,
                      help=f"batches between checkpoints into OUT.zarr "
                           f"{_default('checkpoint_every')}")
-    run.add_argument("--resume", action="store_true", help="continue from OUT.zarr's checkpoint")
+    run.add_argument("--resume", action="store_true",
+                     help="continue from OUT.zarr's checkpoint; a smaller --tolerance or a "
+                          "larger --max-iterations continues a finished store")
+    run.add_argument("--exposure", type=_finite_float, metavar="STOPS",
+                     help=f"PNG brightness in stops over the automatic exposure "
+                          f"{_default('exposure')}")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+    render = commands.add_parser(
+        "render", help="a new image from a finished store: no direct pass, no solve")
+    render.add_argument("store", help="OUT.zarr written by daskrad run")
+    render.add_argument("-o", "--output", required=True,
+                        help="the image VIEW.exr (VIEW.png beside it)")
+    render.add_argument("--config", help="TOML whose [camera] replaces the run's camera")
+    render.add_argument("--eye", type=_vec3, metavar="X,Y,Z",
+                        help="camera position (default: the run's camera, or --config's)")
+    render.add_argument("--look-at", type=_vec3, metavar="X,Y,Z",
+                        help="point looked at (default: the run's)")
+    render.add_argument("--up", type=_vec3, metavar="X,Y,Z", help="up direction (default: the "
+                                                                    "run's)")
+    render.add_argument("--fov", type=_positive_float,
+                        help="horizontal field of view, degrees (default: the run's)")
+    render.add_argument("--width", type=_positive_int, help="image width (default: the run's)")
+    render.add_argument("--height", type=_positive_int,
+                        help="image height (default: the run's)")
+    render.add_argument("--spp", type=_positive_int, help="samples per pixel (default: the run's)")
+    render.add_argument("--exposure", type=_finite_float, metavar="STOPS",
+                        help="PNG brightness in stops over the automatic exposure (default 0)")
+    render.add_argument("-q", "--quiet", action="store_true", help="no timing line")
+
+    export = commands.add_parser(
+        "export", help="the mesh with its baked vertex radiance (PLY, glTF binary, OBJ)")
+    export.add_argument("store", help="OUT.zarr written by daskrad run")
+    export.add_argument("output", help="OUT.ply, OUT.glb or OUT.obj")
+    export.add_argument("--exposure", type=_finite_float, metavar="STOPS",
+                        help="vertex colours' brightness in stops over the automatic exposure "
+                             "(default 0; the linear radiance is written as it is)")
     return parser
 
 
@@ -179,6 +233,10 @@ def _main(args) -> int:
                 subcommands.run_command(args)
             elif args.command == "warmup":
                 subcommands.warmup_command()
+            elif args.command == "render":
+                subcommands.render_command(args)
+            elif args.command == "export":
+                subcommands.export_command(args)
     except DaskradError as err:
         sys.stderr.write(f"daskrad: error: {err.line()}\n")
         return 2

@@ -1,8 +1,16 @@
-"""The ``daskrad`` subcommands over the pipeline: ``run`` and ``info`` (the CLI parses,
-these compose the steps of :mod:`daskrad.run`)."""
+"""The ``daskrad`` subcommands over the pipeline: ``run``, ``info``, ``render`` and ``export``
+(the CLI parses, these compose the steps of :mod:`daskrad.run`).
+
+``render`` and ``export`` read a finished solution store and never write into it: the render
+context the run's image came from is kept in the store (``internal/context/render``), so a new
+view is :func:`daskrad.render.pixels` of that context with another camera — no direct pass and
+no solve — and gives the same bits as a full run with that camera.
+"""
 
 from __future__ import annotations
 
+import time
+from dataclasses import replace
 from pathlib import Path
 
 from daskrad.scene import load_scene
@@ -90,3 +98,74 @@ def info_text(args) -> str:
         f"{len(tris)} triangles",
     ]
     return "\n".join(lines)
+
+
+def _camera_of(args, stored):
+    """The camera of ``daskrad render``: the run's (``stored``), or ``--config``'s
+    ``[camera]``, with each option given replacing its field; :class:`OptionError` for a
+    camera that cannot form an image."""
+    import numpy as np
+
+    from daskrad.errors import OptionError
+    from daskrad.scene.config import read_config
+
+    cam = stored
+    if args.config:
+        cfg = read_config(args.config)
+        if cfg.camera is None:
+            raise OptionError("has no [camera] table", args.config)
+        cam = cfg.camera
+    fields = {k: np.asarray(getattr(args, k), float) for k in ("eye", "look_at", "up")
+              if getattr(args, k) is not None}
+    for k in ("fov", "width", "height"):
+        if getattr(args, k) is not None:
+            fields[k] = getattr(args, k)
+    cam = replace(cam, **fields)
+    if not 0.0 < cam.fov < 180.0:
+        raise OptionError(f"--fov must be in (0, 180) degrees, got {cam.fov:g}")
+    forward = np.asarray(cam.look_at, float) - np.asarray(cam.eye, float)
+    if not np.linalg.norm(forward) > 0:
+        raise OptionError("the camera's eye and look-at are the same point")
+    up = np.asarray(cam.up, float)
+    if not np.linalg.norm(np.cross(forward, up)) > 1e-9 * np.linalg.norm(forward) * \
+            np.linalg.norm(up):
+        raise OptionError("the camera's up is zero or parallel to the view direction")
+    return cam
+
+
+def render_command(args) -> None:
+    """``daskrad render STORE -o VIEW.exr``: a new view of a finished solution."""
+    from daskrad.distributed.store import Result
+    from daskrad.errors import OptionError
+    from daskrad.io import write_exr, write_png
+    from daskrad.output import Outputs
+    from daskrad.render import pixels
+
+    outputs = Outputs.of(args.output)
+    result = Result(args.store)
+    if Path(args.store).absolute() in outputs.exr.absolute().parents:
+        raise OptionError("the image must be written outside the store", args.output)
+    ctx = result.render_context()
+    cam = _camera_of(args, ctx.camera)
+    Settings(width=cam.width, height=cam.height, spp=args.spp or ctx.spp).validate()
+    t = time.perf_counter()
+    image = pixels(replace(ctx, camera=cam, spp=args.spp or ctx.spp))
+    write_exr(outputs.exr, image)
+    write_png(outputs.png, image, stops=args.exposure or 0.0)
+    if not args.quiet:
+        print(f"rendered {cam.width} x {cam.height} from {args.store} in "
+              f"{time.perf_counter() - t:.1f} s")
+    print(f"wrote {outputs.exr}, {outputs.png}")
+
+
+def export_command(args) -> None:
+    """``daskrad export STORE OUT.ply|OUT.glb|OUT.obj``: the mesh with its vertex radiance."""
+    from daskrad.distributed.store import Result
+    from daskrad.io.mesh import write_mesh
+
+    result = Result(args.store)
+    ctx = result.render_context()
+    vertices = result.array("vertices")
+    write_mesh(args.output, vertices, ctx.tri_verts, ctx.vertex_radiance,
+               stops=args.exposure or 0.0)
+    print(f"wrote {args.output} ({len(ctx.tri_verts)} triangles, {len(vertices)} vertices)")

@@ -1,4 +1,4 @@
-"""Step 2: direct light at element vertices (DESIGN §1; issue 5, items 1 and 3).
+"""Step 2: direct light at element vertices (docs/design.md §1; issue 5, items 1 and 3).
 
 Irradiance ``H`` from point lights, directional lights and area lights (the emitting patches)
 is computed at every element vertex with shadow rays through the voxel grid

@@ -1,4 +1,4 @@
-"""User errors: the ones a user can cause and fix (DESIGN §7).
+"""User errors: the ones a user can cause and fix (docs/design.md §7).
 
 The CLI turns a :class:`DaskradError` into one line on stderr and exit code 2, never a traceback.
 """
@@ -35,3 +35,8 @@ class DaskradWarning(UserWarning):
     The CLI prints each as one line, ``daskrad: warning: <message>``, without Python's source
     line; a :class:`daskrad.scene.Scene` keeps the warnings of its loading in ``warnings``.
     """
+
+
+class StoreError(OptionError):
+    """The solution store given (``--resume``, ``daskrad render``, ``daskrad export``) is
+    missing, damaged, unfinished or was written from other inputs or settings."""

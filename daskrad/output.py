@@ -1,4 +1,4 @@
-"""Step 5, output: the HDR image, its PNG preview and the run report (DESIGN §7).
+"""Step 5, output: the HDR image, its PNG preview and the run report (docs/design.md §7).
 
 :class:`Outputs` names every file a run writes, from the ``-o OUT.exr`` the user gave, and is
 checked before anything is loaded or written; :func:`write` writes the image files and the
@@ -173,12 +173,27 @@ def report(scene: Scene, outputs: Outputs, settings: Settings, light: DirectLigh
            sol: Solution, image: Image, *, workers: int, seconds: dict,
            warnings: list[str]) -> dict:
     """The run report (written as ``OUT.json``): counts, convergence, timings, settings."""
+    from daskrad.mesh import default_sizes
+    from daskrad.mesh.refine import MIN_SIZE_DIVISOR
+
     h = light.mesh.hierarchy
+    patch_size, element_size = default_sizes(scene)
+    patch_size, element_size = (settings.patch_size or patch_size,
+                                settings.element_size or element_size)
+    cam = image.camera
     return {
         "scene": str(scene.path),
         "output": str(outputs.exr),
         # the scene is worked in coordinates relative to this point (scene.origin)
         "origin": scene.origin,
+        "store": str(outputs.store),
+        "versions": versions(),
+        # the sizes used, the automatic ones resolved (settings keeps None for them)
+        "sizes": {"patch_size": patch_size, "element_size": element_size,
+                  "min_element_size": (settings.min_element_size
+                                       or element_size / MIN_SIZE_DIVISOR)},
+        "camera": {"eye": cam.eye, "look_at": cam.look_at, "up": cam.up, "fov": cam.fov,
+                   "width": cam.width, "height": cam.height},
         "counts": {"polygons": len(scene.polygons), "patches": h.n_patches,
                    "elements": h.n_elements, "vertices": len(h.vertices),
                    "emitters": int(scene.emitting.sum()),
@@ -201,6 +216,22 @@ def report(scene: Scene, outputs: Outputs, settings: Settings, light: DirectLigh
     }
 
 
+def versions() -> dict:
+    """The versions of Python, daskrad and the packages whose behaviour the result depends on."""
+    import platform
+    from importlib import metadata
+
+    from daskrad import __version__
+
+    out = {"python": platform.python_version(), "daskrad": __version__}
+    for name in ("numpy", "numba", "dask", "distributed", "zarr", "trimesh", "openexr"):
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
 def warn(message: str) -> None:
     """One warning line on stderr."""
     print(f"daskrad: warning: {message}", file=sys.stderr)
@@ -220,9 +251,10 @@ def not_converged(sol: Solution, settings: Settings) -> str | None:
             f"{settings.tolerance:g}); the image adds an ambient term")
 
 
-def write(outputs: Outputs, image: Image, report: dict) -> None:
-    """Step 5: the EXR (float32 linear radiance), the tone-mapped PNG and the JSON report."""
+def write(outputs: Outputs, image: Image, report: dict, exposure: float = 0.0) -> None:
+    """Step 5: the EXR (float32 linear radiance), the tone-mapped PNG (``exposure`` stops over
+    the automatic exposure) and the JSON report."""
     write_exr(outputs.exr, image.pixels)
-    write_png(outputs.png, image.pixels)
+    write_png(outputs.png, image.pixels, stops=exposure)
     write_report(outputs.json, report)
 

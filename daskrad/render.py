@@ -4,7 +4,7 @@ Image values are **radiance** ``L = B / π`` (W·m⁻²·sr⁻¹ of the scene's 
 compare directly with a path tracer's output. Surfaces are one-sided: a ray that reaches the back
 of a face sees black, as in Mitsuba and pbrt.
 
-Camera convention (DESIGN §6): ``forward = normalize(look_at − eye)``,
+Camera convention (docs/design.md §6): ``forward = normalize(look_at − eye)``,
 ``right = normalize(forward × up)``, ``true_up = right × forward``; pixel column ``x`` grows along
 ``right``, row 0 is the top of the image; ``fov`` is horizontal.
 
@@ -125,7 +125,7 @@ def default_camera(bounds: np.ndarray, width: int = 256, height: int = 256,
 
 
 def camera_frame(camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(forward, right, true_up)``, unit vectors of the DESIGN §6 convention."""
+    """``(forward, right, true_up)``, unit vectors of the docs/design.md §6 convention."""
     forward = np.asarray(camera.look_at, float) - np.asarray(camera.eye, float)
     forward /= np.linalg.norm(forward)
     right = np.cross(forward, np.asarray(camera.up, float))
@@ -409,6 +409,31 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
     """
     mesh = light.mesh
     h, reflectance = mesh.hierarchy, mesh.reflectance
+    indirect, direct_v = vertex_split(light, sol)
+    ctx = RenderContext(grid=mesh.grid, tri_verts=mesh.tri_verts, tri_element=mesh.tri_element,
+                        elem_normal=h.elem_normal, vertex_radiance=indirect + direct_v,
+                        camera=cam, spp=settings.spp)
+    mats, mat = scene.materials, h.elem_material
+    ctx = perpixel_context(
+        ctx, h.elem_verts, vertex_indirect=indirect, vertex_direct=direct_v,
+        elem_reflectance=reflectance, elem_emission=mats.emission[mat],
+        elem_specular=mats.specular[mat], elem_shininess=mats.shininess[mat],
+        elem_mirror=mats.mirror[mat],
+        lights=(direct.lights_of(light.context)
+                if light.irradiance is not None and light.context is not None else None),
+        rdiff=settings.rdiff if settings.per_pixel else None,
+        mirror_depth=settings.mirror_depth, diagonal=scene.diagonal)
+    return with_unshadowed(ctx, h)
+
+
+def vertex_split(light: DirectLight, sol: Solution) -> tuple[np.ndarray, np.ndarray]:
+    """``(indirect, direct)``, each ``(V, 3) float64`` radiance: vertex radiance split into
+    the part interpolated across elements (indirect light and the ambient term of an
+    unconverged solution) and the direct part ``(E + ρH) / π``, exact at every vertex (zero
+    without gathered light: then it is all in ``indirect``). T-vertices take both from their
+    edge (:func:`~daskrad.mesh.refine.resolve_tvertices`)."""
+    mesh = light.mesh
+    h, reflectance = mesh.hierarchy, mesh.reflectance
     amb = ambient(h, reflectance, sol.unshot)
     H = light.irradiance
     if H is None:
@@ -420,22 +445,8 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
         direct_v = (direct.vertex_reflectance(h, mesh.emission)
                     + direct.vertex_reflectance(h, reflectance) * H)
         indirect = vertex_average(h, sol.radiosity - sol.direct + reflectance * amb)
-    indirect = resolve_tvertices(indirect, light.tvertices) / math.pi
-    direct_v = resolve_tvertices(direct_v, light.tvertices) / math.pi
-    ctx = RenderContext(grid=mesh.grid, tri_verts=mesh.tri_verts, tri_element=mesh.tri_element,
-                        elem_normal=h.elem_normal, vertex_radiance=indirect + direct_v,
-                        camera=cam, spp=settings.spp)
-    mats, mat = scene.materials, h.elem_material
-    ctx = perpixel_context(
-        ctx, h.elem_verts, vertex_indirect=indirect, vertex_direct=direct_v,
-        elem_reflectance=reflectance, elem_emission=mats.emission[mat],
-        elem_specular=mats.specular[mat], elem_shininess=mats.shininess[mat],
-        elem_mirror=mats.mirror[mat],
-        lights=(direct.lights_of(light.context)
-                if H is not None and light.context is not None else None),
-        rdiff=settings.rdiff if settings.per_pixel else None,
-        mirror_depth=settings.mirror_depth, diagonal=scene.diagonal)
-    return with_unshadowed(ctx, h)
+    return (resolve_tvertices(indirect, light.tvertices) / math.pi,
+            resolve_tvertices(direct_v, light.tvertices) / math.pi)
 
 
 def with_unshadowed(ctx: RenderContext, h) -> RenderContext:
@@ -469,12 +480,15 @@ class Image:
     ambient : (3,) float64
         The ambient term added for an unconverged solution (W/m², Cohen et al.).
     seconds : float
+    vertex_direct : (V, 3) float64 or None
+        The direct part of ``context.vertex_radiance`` (:func:`vertex_split`).
     """
 
     pixels: np.ndarray
     context: RenderContext
     ambient: np.ndarray
     seconds: float = 0.0
+    vertex_direct: np.ndarray | None = None
 
     @property
     def camera(self) -> Camera:
@@ -496,14 +510,22 @@ def image(scene: Scene, light: DirectLight, sol: Solution, settings: Settings, e
         raise SceneError("the radiosity solution is not finite (NaN or inf): emission or "
                          "light intensities too large for a float64", scene.path)
     ctx = context(scene, light, sol, settings, cam or camera(scene, settings))
+    out = pixels(ctx, executor)
+    if not np.isfinite(out).all():
+        raise SceneError("the image is not finite (NaN or inf radiance)", scene.path)
+    return Image(pixels=out, context=ctx,
+                 ambient=ambient(light.mesh.hierarchy, light.mesh.reflectance, sol.unshot),
+                 seconds=time.perf_counter() - t, vertex_direct=vertex_split(light, sol)[1])
+
+
+def pixels(ctx: RenderContext, executor=None) -> np.ndarray:
+    """``(H, W, 3) float64``: the image of ``ctx``, tile by tile on ``executor`` (``tile-…``
+    futures; default this process). The same bits either way, and from a context read back
+    from a store (``daskrad render``)."""
     parts = tiles(ctx.camera.width, ctx.camera.height)
-    pixels = np.zeros((ctx.camera.height, ctx.camera.width, 3))
+    out = np.zeros((ctx.camera.height, ctx.camera.width, 3))
     done = (executor.tiles(ctx, parts) if executor is not None
             else [render_tile(ctx, rows, cols) for rows, cols in parts])
     for (rows, cols), tile in zip(parts, done, strict=True):
-        pixels[rows, cols] = tile
-    if not np.isfinite(pixels).all():
-        raise SceneError("the image is not finite (NaN or inf radiance)", scene.path)
-    return Image(pixels=pixels, context=ctx,
-                 ambient=ambient(light.mesh.hierarchy, light.mesh.reflectance, sol.unshot),
-                 seconds=time.perf_counter() - t)
+        out[rows, cols] = tile
+    return out

@@ -1,4 +1,4 @@
-"""The pipeline on one screen, the paper's five steps (DESIGN §1).
+"""The pipeline on one screen, the paper's five steps (docs/design.md §1).
 
 1. preprocess: load and triangulate the scene, mesh it into polygons → patches → elements,
    build the voxel grid;
@@ -14,7 +14,6 @@ dashboard observe the solve (``on_batch``); they never change what it computes.
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 from pathlib import Path
@@ -56,7 +55,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
     mesh = preprocess(scene, settings)                                            # 1
     seconds["preprocess"], t = time.perf_counter() - t, time.perf_counter()
     replaced = outputs.earlier()
-    store = Store(outputs.working_store(resume), settings, resume=resume)
+    store = Store(outputs.working_store(resume), settings, resume=resume, scene=scene)
     ex = executor or executor_for(settings, store)
     try:
         store.open()           # a new store, or the checkpoint to resume from
@@ -74,7 +73,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         bar.close()
         seconds["solve"], t = time.perf_counter() - t, time.perf_counter()
         image = render.image(scene, light, sol, settings, ex, camera)             # 4
-        store.finish(image.context.vertex_radiance * math.pi)
+        store.finish(image)
         seconds["render"], t = time.perf_counter() - t, time.perf_counter()
     except Exception as err:
         if not (resume or interrupted(err)):    # a stopped run keeps its checkpoint
@@ -82,16 +81,16 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         raise
     finally:
         ex.close()
-    warnings = [w for w in (output.unlit_warning(scene, light, sol),
-                            output.not_converged(sol, settings)) if w]
-    for w in warnings:
+    late = [w for w in (output.unlit_warning(scene, light, sol),
+                        output.not_converged(sol, settings)) if w]
+    for w in late:
         output.warn(w)
-    warnings = [*scene.warnings, *warnings]     # the loader's were printed as it read
+    warnings = [*scene.warnings, *late]     # the loader's were printed as it read
     seconds["total"] = time.perf_counter() - start
     report = output.report(scene, outputs, settings, light, sol, image, workers=ex.workers,
                            seconds=seconds, warnings=warnings)
     outputs.publish(Path(store.path))
-    output.write(outputs, image, report)                                          # 5
+    output.write(outputs, image, report, settings.exposure)                       # 5
     if replaced and not resume:
         output.note(f"replaced the earlier results {', '.join(p.name for p in replaced)}")
     return report

@@ -1,4 +1,4 @@
-"""Run settings: every option of ``daskrad run`` with its default, stated once (DESIGN §7).
+"""Run settings: every option of ``daskrad run`` with its default, stated once (docs/design.md §7).
 
 ``None`` means "derived from the scene" (sizes follow the scene's scale). :meth:`Settings.
 validate` checks every value against its range and the method registries before a run loads
@@ -57,6 +57,7 @@ class Settings:
     rdiff: float = 0.1                  # eq. 9 threshold, in units of the scene's white level
     #                                     (bench_twopass: 0.1 is within 1 % of the best error)
     mirror_depth: int = 4               # mirror bounces per pixel ray
+    exposure: float = 0.0               # PNG brightness, stops over the automatic exposure
 
     def replace(self, **changes) -> Settings:
         return replace(self, **changes)
@@ -121,4 +122,7 @@ class Settings:
         positive("subdivide", zero=True)
         positive("rdiff", zero=True)
         integer("mirror_depth", 0, 64)
+        if (isinstance(self.exposure, bool) or not isinstance(self.exposure, (int, float))
+                or not math.isfinite(self.exposure)):
+            bad("exposure", "must be a finite number of stops")
         return self

@@ -7,7 +7,7 @@ The client owns two arrays and is the only one to change them:
 - ``unshot : (P, 3) float64``, unshot radiosity ``ΔB`` of every patch.
 
 A shot from patch ``i`` with form factors ``F_ij`` (from the shooter to element ``j``) adds, for
-every element ``j`` (DESIGN §4)::
+every element ``j`` (docs/design.md §4)::
 
     ΔB_j = ρ_j · ΔB_i · F_ij · A_i / A_j
 

@@ -47,7 +47,7 @@ CAMERA_UP_SINE = 1e-9
 EDGE_ANGLE_DEG = 1.0
 
 #: Receiving polygons are clipped against the plane ``HORIZON_EPS * diag`` above the shooter's
-#: tangent plane (hemisphere-base form factor, DESIGN §2), so a polygon coplanar with the
+#: tangent plane (hemisphere-base form factor, docs/design.md §2), so a polygon coplanar with the
 #: shooter (its own polygon, the floor it stands on) vanishes instead of rasterizing round-off.
 HORIZON_EPS = 1e-9
 
@@ -74,9 +74,10 @@ COPLANAR_CELL = 1e-3
 #: A face lying on a larger face in one plane (a decal, a rug, a picture on a wall: a coplanar
 #: overlap, see ``COPLANAR``) is lifted ``DECAL_LIFT * diag`` off the plane along its normal so
 #: that it shows and the face under it is hidden there (issue 16); a decal on a decal twice as
-#: far. 2e-5 is what the converted scenes of ``../shared/scenes`` used: 200 × ``RAY_OFFSET`` (the
-#: decal is above where the rays of the face under it start) and 2e4 × ``COPLANAR`` and
-#: ``HORIZON_EPS`` (the lifted face is another plane for every test), yet 0.2 mm in a 10 m room.
+#: far. 2e-5 is what the converted real-interior scenes (RenderPark's) used: 200 ×
+#: ``RAY_OFFSET`` (the decal is above where the rays of the face under it start) and 2e4 ×
+#: ``COPLANAR`` and ``HORIZON_EPS`` (the lifted face is another plane for every test), yet
+#: 0.2 mm in a 10 m room.
 DECAL_LIFT = 2e-5
 
 #: Faces stacked more than this deep in one plane (decal on decal on ...) are refused: the

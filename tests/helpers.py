@@ -97,8 +97,8 @@ def in_shadow(points, direction=(0.3, -1.0, 0.0)):
 # --- runs that must agree bit for bit -------------------------------------------------------
 
 def store_arrays(path: Path) -> dict[str, np.ndarray]:
-    """Every array of a solution store except the worker task contexts (a cache of what the
-    client holds) and the older checkpoint slot; the active slot is named ``checkpoint/last``."""
+    """Every array of a solution store except the task contexts (a cache of what the client
+    holds) and the older checkpoint slot; the active slot is named ``checkpoint/last``."""
     import zarr
 
     root = zarr.open_group(str(path), mode="r")
@@ -108,10 +108,12 @@ def store_arrays(path: Path) -> dict[str, np.ndarray]:
     def walk(group, prefix):
         for name, member in group.members():
             full = prefix + name
-            if full == "context" or (prefix == "checkpoint/" and name != active):
+            if full == "internal/context" or (prefix == "internal/checkpoint/"
+                                              and name != active):
                 continue
             if isinstance(member, zarr.Array):
-                out[full.replace(f"checkpoint/{active}/", "checkpoint/last/")] = member[...]
+                out[full.replace(f"internal/checkpoint/{active}/", "checkpoint/last/")] = (
+                    member[...])
             else:
                 walk(member, full + "/")
 

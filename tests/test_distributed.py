@@ -179,6 +179,8 @@ def test_loopback_cluster_script_and_scheduler_option(reference, tmp_path):
         with urllib.request.urlopen(link.group(1) + "/daskrad", timeout=10) as r:
             page = r.read().decode()
         assert "relative unshot RMS" in page and "<svg" in page
+        # the phase with its progress bar (the last one: the tiles, all done)
+        assert "phase: rendering" in page and '<progress value="1.0000"' in page
     finally:
         os.killpg(proc.pid, signal.SIGTERM)
         try:
@@ -189,7 +191,8 @@ def test_loopback_cluster_script_and_scheduler_option(reference, tmp_path):
 
 
 def test_without_workers_option_small_scenes_stay_in_process():
-    # DESIGN §4: a cluster costs seconds a small scene does not need; a big one gets 2 workers
+    # docs/design.md §4: a cluster costs seconds a small scene does not need; a big one gets 2
+    # workers
     from daskrad.cli import build_parser
     from daskrad.commands import settings_from_args
     from daskrad.distributed import auto_workers

@@ -1,4 +1,4 @@
-"""Form factors against the exact answers of /work/shared/REFERENCES.md (DESIGN §2).
+"""Form factors against the exact answers of docs/references.md (docs/design.md §2).
 
 Error model for the hemisphere-base item buffer (used for every bound below). A pixel counts for
 an element when its centre lies inside the projected outline, so the count differs from the
@@ -43,7 +43,7 @@ from tests.helpers import (
 RESOLUTIONS = (64, 128, 256, 512)
 
 
-# --- exact answers (REFERENCES.md) -------------------------------------------------------------
+# --- exact answers (docs/references.md) -----------------------------------------------------------
 
 def howell_parallel(a, b, c):
     x, y = a / c, b / c

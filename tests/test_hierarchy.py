@@ -1,4 +1,4 @@
-"""The polygon → patch → element hierarchy (issue 2, item 4; DESIGN §1 step 1, §3).
+"""The polygon → patch → element hierarchy (issue 2, item 4; docs/design.md §1 step 1, §3).
 
 Scenes are built directly with the ``Scene`` constructor. Expected counts, areas, normals and
 centroids are recomputed here from the input geometry, independently of ``daskrad.mesh``.

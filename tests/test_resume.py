@@ -108,7 +108,10 @@ def test_resume_refuses_other_settings_and_a_missing_store(uninterrupted, tmp_pa
 
     out = tmp_path / "other.exr"
     shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
-    with pytest.raises(OptionError, match="other settings.*max_iterations"):
+    with pytest.raises(OptionError, match="other settings.*batch"):
+        run(CORNELL, out, SETTINGS.replace(batch=4), progress=False, resume=True)
+    # fewer iterations than the store holds: a straight run would have stopped before it
+    with pytest.raises(OptionError, match="cannot resume with .*max_iterations=100"):
         run(CORNELL, out, SETTINGS.replace(max_iterations=100), progress=False, resume=True)
     with pytest.raises(OptionError, match="no solution store"):
         run(CORNELL, tmp_path / "none.exr", SETTINGS, progress=False, resume=True)
@@ -138,7 +141,7 @@ def test_a_torn_checkpoint_leaves_the_previous_one(tmp_path):
     # the older slot, the one the next checkpoint overwrites (the root names the last one)
     slot = 1 - int(_root_attrs(tmp_path / "t.zarr")["checkpoint"])
     torn = state(3)
-    g = store.group[f"checkpoint/{slot}"]
+    g = store.group[f"internal/checkpoint/{slot}"]
     g["radiosity"][...] = torn.radiosity   # the slot's arrays change, its name is never set
     g["unshot"][...] = torn.unshot
     back = Store(tmp_path / "t.zarr", Settings(), resume=True).open().load_checkpoint(h)

@@ -1,4 +1,4 @@
-"""Every bad scene input is refused with a SceneError naming the file (DESIGN §6, §7)."""
+"""Every bad scene input is refused with a SceneError naming the file (docs/design.md §6, §7)."""
 
 from __future__ import annotations
 
@@ -246,7 +246,7 @@ def test_point_light_alone_is_enough():
     assert len(s.point_lights) == 1 and not s.emitting.any()
 
 
-# The CLI contract (DESIGN §7): exit code 2, exactly one line on stderr, no traceback.
+# The CLI contract (docs/design.md §7): exit code 2, exactly one line on stderr, no traceback.
 CLI_CASES = ["missing", "unknown-format", "nan", "kd-one", "no-light", "toml-malformed",
              "garbage-ply",
              # issue 13: each of these hung, grew without bound, printed a traceback or numpy

@@ -1,4 +1,4 @@
-"""Whole-scene answers for progressive refinement (REFERENCES.md, "Whole-scene answers")."""
+"""Whole-scene answers for progressive refinement (docs/references.md, "Whole-scene answers")."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from daskrad.run import solve_scene
 from daskrad.scene import box_scene
 from daskrad.settings import Settings
 
-# REFERENCES.md: closed unit cube of six single patches, ceiling E = 1 (exitance)
+# docs/references.md: closed unit cube of six single patches, ceiling E = 1 (exitance)
 CUBE = {0.5: (1.090909, 0.181746, 0.181836), 0.8: (1.551724, 0.689551, 0.689681)}
 
 

@@ -109,7 +109,7 @@ def test_duplicated_faces_are_dropped_with_a_warning_back_to_back_faces_made_two
 
 
 def test_flipped_normal_is_a_hole_one_sided_and_creates_no_energy():
-    # Surfaces are one-sided (DESIGN §6): a face wound the wrong way is seen from its back,
+    # Surfaces are one-sided (docs/design.md §6): a face wound the wrong way is seen from its back,
     # so from inside the box it is a hole. It must receive nothing (B = E on it), and the
     # light that leaves through it is lost, never created: the open-scene ledger.
     scene = DEGENERATE["flipped normal"]

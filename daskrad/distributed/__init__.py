@@ -29,7 +29,7 @@ AUTO_CLUSTER_ELEMENTS = 20_000
 
 
 def auto_workers(scene, settings) -> int:
-    """``--workers`` not given: 2 local workers, or 0 for a small scene (DESIGN §4)."""
+    """``--workers`` not given: 2 local workers, or 0 for a small scene (docs/design.md §4)."""
     from daskrad.preprocess import estimated_elements
 
     return 0 if estimated_elements(scene, settings) < AUTO_CLUSTER_ELEMENTS else 2

@@ -1,9 +1,12 @@
-"""The ``/daskrad`` dashboard page: iteration, unshot RMS curve and a preview image.
+"""The ``/daskrad`` dashboard page: the phase with a progress bar, iteration, unshot RMS curve
+and a preview image.
 
 The scheduler loads this module through ``distributed.scheduler.http.routes`` (the LocalCluster
 of ``--workers N`` adds it; for a cluster of your own see ``cluster/README.md``). The client
 publishes with ``client.set_metadata(["daskrad", key], value)`` (:class:`Watch`); the page
-reads the scheduler's ``task_metadata`` and renders it, refreshing itself every two seconds.
+reads the scheduler's ``task_metadata`` and renders it, refreshing itself every two seconds. The
+phase (``preprocessing``, ``direct light``, ``shooting``, ``rendering``) is published from the
+moment the executor starts (:meth:`DaskExecutor.phase`), so the page is never blank.
 ``/daskrad/json`` serves the same data as JSON.
 """
 
@@ -44,6 +47,17 @@ def _curve_svg(history: list, tolerance: float, width: int = 480, height: int = 
             f'points="{" ".join(pts)}"/></svg>')
 
 
+def _phase_html(phase: dict) -> str:
+    """The current phase (preprocessing, direct light, shooting, rendering) and a progress bar."""
+    if not phase:
+        return "<p>no run has started yet</p>"
+    f = min(1.0, max(0.0, float(phase.get("fraction", 0.0))))
+    detail = html.escape(str(phase.get("detail", "")))
+    return (f"<h3>phase: {html.escape(str(phase.get('phase', '?')))}</h3>"
+            f'<progress value="{f:.4f}" max="1" style="width:480px"></progress> '
+            f"{100 * f:.0f} %" + (f" &middot; {detail}" if detail else ""))
+
+
 class DaskradPage(RequestHandler):
     def get(self):
         m = _metadata(self.server)
@@ -59,6 +73,7 @@ class DaskradPage(RequestHandler):
             "<!doctype html><html><head><title>daskrad</title>"
             f'<meta http-equiv="refresh" content="{REFRESH_SECONDS}"></head>'
             '<body style="font-family:sans-serif"><h2>daskrad: progressive refinement</h2>'
+            + _phase_html(m.get("phase", {}))
             + (f"<table>{rows}</table>" if p else "<p>no run has published progress yet</p>")
             + "<h3>relative unshot RMS (log scale)</h3>"
             + _curve_svg(p.get("history", []), float(p.get("tolerance", 1e-3)))

@@ -1,5 +1,5 @@
 """The Dask executor: the same calls as :class:`~daskrad.distributed.executor.InProcess`,
-run as named futures on a cluster (DESIGN §4).
+run as named futures on a cluster (docs/design.md §4).
 
 Futures carry ids and ranges only; the geometry goes once into the store
 (:meth:`Store.put_context`) and each worker caches it (:mod:`daskrad.distributed.worker`).
@@ -7,7 +7,7 @@ Keys are ``formfactor-<generation>-<batch>-<part>-<run>``,
 ``direct-<generation>-<n>-<start>-<run>`` and ``tile-<generation>-<n>-<run>``: the dashboard
 groups them by their first word; the 8-hex run token keeps two runs on one cluster (or two
 runs of one test session) from sharing a key, since a key still held by the scheduler returns
-its old result (STACK.md).
+its old result (docs/stack.md).
 """
 
 from __future__ import annotations
@@ -29,6 +29,8 @@ from daskrad.formfactor import shooting
 
 #: Seconds between two counts of the cluster's workers.
 COUNT_SECONDS = 2.0
+#: Seconds between two phase messages of one phase for the dashboard page.
+PHASE_SECONDS = 0.5
 
 #: Custom dashboard page module (``/daskrad``), added to the scheduler's HTTP routes.
 ROUTES_MODULE = "daskrad.distributed.dashboard"
@@ -93,6 +95,9 @@ class DaskExecutor:
         self.stats = {"wait": 0.0, "tasks": 0}
         self.geometry = None               # (generation, token) of the current geometry
         self._probed = False
+        self._phase = (None, -float("inf"))
+        # the dashboard page shows a phase from the first second: the mesh is built next
+        self.phase("preprocessing", force=True)
 
     # --- the executor interface -------------------------------------------------------------
 
@@ -101,6 +106,7 @@ class DaskExecutor:
         self.geometry = (generation, token)
         self.owner = {}                    # patch id -> the worker holding its row
         self._probe("shoot", token)
+        self.phase("shooting", 0.0, force=True)
 
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Batch:
         """Batch ``batch_no``: one task per worker, each computing the shooters it holds.
@@ -147,7 +153,7 @@ class DaskExecutor:
                                key=f"tile-{generation}-{n}-{self.run}", pure=False)
             for n, (rows, cols) in enumerate(tiles)]
         self.stats["tasks"] += len(futures)
-        return self.client.gather(futures)
+        return self._gather("rendering", futures)
 
     def direct(self, ctx, ranges: list[tuple[int, int]]) -> list[np.ndarray]:
         """Direct light at vertex ranges as ``direct-<generation>-<n>`` futures, in order."""
@@ -159,11 +165,32 @@ class DaskExecutor:
                                key=f"direct-{generation}-{n}-{a}-{self.run}", pure=False)
             for n, (a, b) in enumerate(ranges)]
         self.stats["tasks"] += len(futures)
-        return self.client.gather(futures)
+        return self._gather("direct light", futures)
 
     def publish(self, key: str, value) -> None:
         """Progress for the ``/daskrad`` page (scheduler metadata, small JSON values)."""
         self.client.set_metadata(["daskrad", key], value)
+
+    def phase(self, name: str, fraction: float = 0.0, detail: str = "",
+              force: bool = False) -> None:
+        """The run's current phase and how far it is (``fraction`` in [0, 1]) for the page,
+        at most every ``PHASE_SECONDS`` within one phase unless ``force``."""
+        now = time.monotonic()
+        if not force and self._phase[0] == name and now - self._phase[1] < PHASE_SECONDS:
+            return
+        self._phase = (name, now)
+        self.publish("phase", {"phase": name, "fraction": round(float(fraction), 4),
+                               "detail": detail})
+
+    def _gather(self, name: str, futures: list) -> list:
+        """The futures' results in order, publishing the phase ``name`` as they complete."""
+        from distributed import as_completed
+
+        total = len(futures)
+        self.phase(name, 0.0, f"0 of {total} tasks", force=True)
+        for n, _ in enumerate(as_completed(futures), 1):
+            self.phase(name, n / total, f"{n} of {total} tasks", force=n == total)
+        return self.client.gather(futures)
 
     def close(self) -> None:
         if self.own_client:

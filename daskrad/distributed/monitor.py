@@ -93,6 +93,10 @@ class Watch:
         step = max(1, math.ceil(len(hist) / CURVE_POINTS))
         thinned = [list(x) for x in hist[::step]] + ([list(hist[-1])] if hist else [])
         it, rms, sec = hist[-1] if hist else (sol.iteration, 1.0, sol.seconds)
+        phase = getattr(self.executor, "phase", None)
+        if phase is not None:
+            phase("shooting", _fraction(rms, self.info["tolerance"], sol.converged),
+                  f"{int(it)} shots, relative unshot RMS {rms:.3g}", force=True)
         self.publish("progress", {**self.info, "workers": self.executor.workers,
                                   "iteration": int(it),
                                   "relative_unshot_rms": float(rms), "seconds": round(sec, 2),
@@ -101,3 +105,13 @@ class Watch:
             self._shown = now
             self.publish("preview", self.preview.png_base64(sol))
 
+
+
+def _fraction(rms: float, tolerance: float, converged: bool) -> float:
+    """How far the solve is, for the page's bar: ``log rms / log tolerance`` in [0, 1] (the
+    relative unshot RMS falls from 1 to the tolerance roughly exponentially in the shots)."""
+    if converged or rms <= tolerance:
+        return 1.0
+    if rms >= 1.0 or not 0.0 < tolerance < 1.0:
+        return 0.0
+    return min(1.0, max(0.0, math.log(rms) / math.log(tolerance)))

@@ -1,24 +1,37 @@
-"""The solution store ``OUT.zarr`` (DESIGN §4, §7): the cluster's shared memory.
+"""The solution store ``OUT.zarr`` (docs/design.md §7, "The store"): the cluster's shared memory
+and the run's result, readable with ``xarray.open_datatree``.
 
-Only the client writes; workers open it read-only, so every chunk has one writer (STACK.md:
-two writers of one chunk lose updates). Layout::
+Only the client writes; workers open it read-only, so every chunk has one writer
+(docs/stack.md: two writers of one chunk lose updates). Layout::
 
-    vertices (V,3) f8, elements/{vertices,patch,area,reflectance,radiosity,direct},
-    patches/{polygon,unshot}, vertex_radiosity (V,3) f4      the public schema of DESIGN §7
-    checkpoint/0, checkpoint/1                                the exact solver state (f8), two
-                                                              slots written in turn
-    context/shoot, context/render                             what the worker tasks read
+    vertices (vertex, xyz) f8                         the public results: every array has
+    elements/{vertices,patch,material,area,normal,    zarr 3 dimension names and the
+              reflectance,emission,radiosity,direct}  attributes units, description and
+    patches/{polygon,unshot}                          sha256 (of its bytes, checked on read)
+    materials/{diffuse,emission,specular,shininess,mirror}
+    lights/{point_position,point_intensity,directional_direction,directional_irradiance}
+    vertex_radiance, vertex_radiance_direct (vertex, rgb) f4, vertex_radiosity (vertex, rgb) f4
+    internal/checkpoint/{0,1,2}                       the exact solver state (f8), three slots
+                                                      written in turn
+    internal/context/{shoot,direct,render}            what the worker tasks (and
+                                                      ``daskrad render``/``export``) read
 
-Root attributes: ``format``, ``settings``, ``generation``, ``iteration``, ``converged``,
-``history`` (per batch: iteration, relative unshot RMS, seconds) and ``checkpoint`` (the slot
-holding the last complete checkpoint).
+Root attributes: ``format``, ``daskrad`` (version), ``settings``, ``inputs`` (the fingerprint of
+what the solution depends on, :func:`fingerprint`), ``generation``, ``iteration``,
+``converged``, ``history`` (per batch: iteration, relative unshot RMS, seconds),
+``checkpoint`` (the slot holding the last complete checkpoint), ``continue`` (the slot of the
+last checkpoint a later run with other stopping criteria may continue from) and, once the image is
+rendered, ``complete``, ``camera``, ``ambient`` and ``render`` (the render context's token).
 
-Invariant of the checkpoint: a slot is written completely (arrays, then its own attributes)
-before the root's ``checkpoint`` attribute names it, and the other slot — the previous
-checkpoint — is left untouched meanwhile. Zarr replaces each chunk and ``zarr.json`` file
-atomically, so a client killed at any instant leaves the last complete checkpoint readable.
-The public ``float32`` arrays are refreshed at every checkpoint for users; a resume reads only
-the ``float64`` slot, so it continues from exactly the bits the interrupted run held.
+Invariant of the checkpoint: a slot is written completely (arrays, then its own attributes,
+which hold the sha256 of each array) before the root's ``checkpoint`` attribute names it, and
+the previous checkpoint is left untouched meanwhile, as is the one named ``continue``, the
+last state a run with a smaller tolerance or more iterations passes through (three slots).
+Zarr replaces each chunk and ``zarr.json`` file atomically, so a client killed at any instant
+leaves the last complete checkpoint readable. The public ``float32`` arrays are refreshed at
+every checkpoint for users; a resume reads only the ``float64`` slot, so it continues from
+exactly the bits the interrupted run held, after checking the slot's checksums and the store's
+fingerprint.
 """
 
 from __future__ import annotations
@@ -27,7 +40,6 @@ import contextlib
 import dataclasses
 import functools
 import hashlib
-import importlib
 import json
 import math
 import signal
@@ -37,13 +49,15 @@ from pathlib import Path
 import numpy as np
 import zarr
 
-from daskrad.errors import OptionError
+from daskrad import __version__
+from daskrad.errors import StoreError
 from daskrad.io.report import plain
 from daskrad.mesh.types import Hierarchy
 from daskrad.settings import Settings
 from daskrad.solve import Solution
 
-FORMAT = "daskrad-solution/1"
+#: The store's format; a store of another format is refused (resume, render, export).
+FORMAT = "daskrad-solution/2"
 
 #: Rows per chunk of the per-element arrays: ~1.5 MB of (E, 3) float64, big enough that a
 #: checkpoint of 100k elements writes a handful of files, small enough for partial reads.
@@ -51,32 +65,136 @@ CHUNK_ROWS = 1 << 16
 
 #: Settings that change the solution; a resume refuses a store written with other values.
 SOLUTION_SETTINGS = ("method", "resolution", "edge_angle", "patch_size", "element_size",
-                     "tolerance", "max_iterations", "batch", "seed")
+                     "batch", "seed", "two_pass", "area_samples", "area_method", "subdivide",
+                     "min_element_size")
+#: The stopping criteria: a resume may change them (:meth:`Store.load_checkpoint` picks a
+#: checkpoint a straight run with the new criteria passes through).
+STOPPING = ("tolerance", "max_iterations")
+
+#: The public arrays: dimension names, units and a description (lengths are in the scene's
+#: unit, written "m" below; radiometric units are per that unit of area).
+SCHEMA = {
+    "vertices": (("vertex", "xyz"), "m", "element corners (shared by the elements of a "
+                 "polygon)"),
+    "elements/vertices": (("element", "corner"), "1", "corner vertex ids, counter-clockwise "
+                          "seen from the lit side; -1 as the fourth corner of a triangle"),
+    "elements/patch": (("element",), "1", "the patch of each element"),
+    "elements/material": (("element",), "1", "the material row of each element"),
+    "elements/area": (("element",), "m2", "element area"),
+    "elements/normal": (("element", "xyz"), "1", "unit normal, on the lit side"),
+    "elements/reflectance": (("element", "rgb"), "1", "diffuse reflectance rho (Kd)"),
+    "elements/emission": (("element", "rgb"), "W m-2", "emitted radiosity (exitance) pi Ke"),
+    "elements/radiosity": (("element", "rgb"), "W m-2", "radiosity B, emission included "
+                           "(the last checkpoint, rounded to float32)"),
+    "elements/direct": (("element", "rgb"), "W m-2", "the part of B that is emission plus "
+                        "first-bounce direct light"),
+    "patches/polygon": (("patch",), "1", "the input polygon (face) of each patch"),
+    "patches/unshot": (("patch", "rgb"), "W m-2", "unshot radiosity of each patch"),
+    "materials/diffuse": (("material", "rgb"), "1", "Kd, diffuse reflectance"),
+    "materials/emission": (("material", "rgb"), "W m-2 sr-1", "Ke, emitted radiance"),
+    "materials/specular": (("material", "rgb"), "1", "Ks, Phong specular (mirror: reflected "
+                           "fraction)"),
+    "materials/shininess": (("material",), "1", "Ns, Phong exponent"),
+    "materials/mirror": (("material",), "1", "illum 3: an ideal mirror in the per-pixel pass"),
+    "lights/point_position": (("point_light", "xyz"), "m", "point light positions"),
+    "lights/point_intensity": (("point_light", "rgb"), "W sr-1", "point light intensity"),
+    "lights/directional_direction": (("directional_light", "xyz"), "1", "unit direction the "
+                                     "light travels"),
+    "lights/directional_irradiance": (("directional_light", "rgb"), "W m-2", "irradiance on a "
+                                      "surface facing the light"),
+    "vertex_radiance": (("vertex", "rgb"), "W m-2 sr-1", "radiance B/pi at the vertices as "
+                        "the image interpolates it: ambient term added, T-vertices resolved"),
+    "vertex_radiance_direct": (("vertex", "rgb"), "W m-2 sr-1", "the direct part of "
+                               "vertex_radiance: (emission + rho H)/pi at the vertex"),
+    "vertex_radiosity": (("vertex", "rgb"), "W m-2", "pi * vertex_radiance"),
+}
+#: Checkpoint slots: the last checkpoint, the last one a run with other stopping criteria can
+#: continue from, and the one being written.
+SLOTS = 3
+_SLOT = {"radiosity": ("element", "rgb"), "direct": ("element", "rgb"),
+         "unshot": ("patch", "rgb")}
 
 
 def _chunks(shape: tuple) -> tuple:
     return (max(1, min(shape[0], CHUNK_ROWS)),) + tuple(max(1, s) for s in shape[1:])
 
 
-def _put(group, name: str, data: np.ndarray, dtype=None, compress: bool = True):
-    """Write ``data`` as array ``name`` of ``group`` (replacing it), ``dtype`` if given;
-    returns the array."""
+def sha256(a: np.ndarray) -> str:
+    """Hex sha256 of an array's dtype, shape and bytes (C order)."""
+    a = np.ascontiguousarray(a)
+    d = hashlib.sha256(f"{a.dtype.str}{a.shape}".encode())
+    d.update(a.reshape(-1).view(np.uint8))
+    return d.hexdigest()
+
+
+def _put(group, name: str, data: np.ndarray, dtype=None, compress: bool = True, *,
+         dims: tuple | None = None, units: str = "1", description: str = "") -> None:
+    """Write ``data`` as array ``name`` of ``group`` (replacing it), ``dtype`` if given, with
+    its dimension names, units, description and the sha256 of what was written."""
     data = np.ascontiguousarray(data, dtype=dtype)
     *parents, name = name.split("/")
     for parent in parents:
         group = group.require_group(parent)
+    dims = tuple(dims) if dims is not None else tuple(f"{name}_{i}" for i in range(data.ndim))
     arr = group.create_array(name, shape=data.shape, dtype=data.dtype,
-                             chunks=_chunks(data.shape), overwrite=True,
+                             chunks=_chunks(data.shape), overwrite=True, dimension_names=dims,
+                             attributes={"units": units, "description": description,
+                                         "sha256": sha256(data)},
                              **({} if compress else {"compressors": None}))
     if data.size:
         arr[...] = data
-    return arr
+
+
+def _public(group, name: str, data: np.ndarray, dtype=None) -> None:
+    dims, units, description = SCHEMA[name]
+    _put(group, name, data, dtype, dims=dims, units=units, description=description)
+
+
+def read_checked(group, name: str, path: str) -> np.ndarray:
+    """Array ``name`` of ``group``, its bytes checked against its ``sha256`` attribute;
+    :class:`StoreError` naming the array if it is missing, unreadable or damaged."""
+    try:
+        arr = group[name]
+        data = arr[...]
+    except Exception as err:  # a truncated chunk, a missing zarr.json: one line, not a trace
+        why = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise StoreError(f"cannot read {_where(group, name)}: {why}", path) from err
+    if arr.attrs.get("sha256") != sha256(data):
+        raise StoreError(f"{_where(group, name)} is damaged (its bytes do not match its "
+                         "sha256); run again without --resume", path)
+    return data
+
+
+def _where(group, name: str) -> str:
+    return f"{group.path}/{name}".lstrip("/")
 
 
 def _jsonable(value):
     """Attributes as JSON: numpy scalars to Python numbers (float64 round-trips exactly);
     inf and nan stay floats (:func:`_encode` spells them out)."""
     return plain(value, keep_nonfinite=True)
+
+
+def fingerprint(scene) -> dict[str, str]:
+    """What the solution depends on in a loaded scene, one digest per part.
+
+    ``geometry`` (vertices, polygons), ``materials`` (polygon materials, ``Kd``, ``Ke``) and
+    ``lights`` (point and directional). Digests of what was *loaded*, not of the files' bytes:
+    every byte of the OBJ, MTL, glTF buffers or TOML that changes the answer changes one of
+    them, while a comment, the camera or a specular coefficient (which only the image, rendered
+    again on every run, reads) does not refuse a resume; and a refusal can say which part
+    differs.
+    """
+    def digest(*arrays) -> str:
+        d = hashlib.sha256()
+        for a in arrays:
+            d.update(sha256(np.asarray(a)).encode())
+        return d.hexdigest()[:32]
+
+    m, pl, dl = scene.materials, scene.point_lights, scene.directional_lights
+    return {"geometry": digest(scene.vertices, scene.polygons),
+            "materials": digest(scene.polygon_material, m.diffuse, m.emission),
+            "lights": digest(pl.position, pl.intensity, dl.direction, dl.irradiance)}
 
 
 @contextlib.contextmanager
@@ -129,18 +247,22 @@ class Store:
 
     ``Store(path)`` only names the store; :meth:`open` creates it (or, with ``resume=True``,
     reopens it), :meth:`begin` writes the hierarchy and returns the checkpoint to resume from.
+    ``scene`` (the loaded scene) gives the fingerprint a resume compares, and the materials and
+    lights written beside the results.
     """
 
     def __init__(self, path: str | Path, settings: Settings | None = None, *,
-                 resume: bool = False):
+                 resume: bool = False, scene=None):
         self.given = str(path)                       # as the user gave it (checked for --scheduler)
         self.path = str(Path(path).absolute())       # what workers open
         self.settings = settings or Settings()
         self.resume = resume
+        self.scene = scene
+        self.inputs = fingerprint(scene) if scene is not None else None
         self.group = None
         self._slot = None
+        self._written = None                         # (iteration, batches) of that slot
         self.generation = 0
-        self._arrays: dict = {}     # checkpoint arrays by path, rewritten in place (:meth:`_fill`)
 
     # --- creation, hierarchy, resume ------------------------------------------------------
 
@@ -152,15 +274,18 @@ class Store:
         else:
             self.group = zarr.open_group(self.path, mode="w")
             self.group.update_attributes({
-                "format": FORMAT, "settings": _jsonable(self.settings.as_dict()),
+                "format": FORMAT, "daskrad": __version__,
+                "description": "daskrad radiosity solution (docs/design.md §7, 'The store')",
+                "settings": _jsonable(self.settings.as_dict()), "inputs": self.inputs,
                 "generation": -1, "iteration": 0, "converged": False, "history": []})
         return self
 
     def begin(self, h: Hierarchy, reflectance: np.ndarray, sol: Solution) -> Solution:
         """Write the hierarchy once per mesh generation; the solution to start from.
 
-        That is ``sol`` for a new run, the last checkpoint when resuming (``sol`` again if the
-        interrupted run died before its first checkpoint).
+        That is ``sol`` for a new run, the checkpoint to continue from when resuming (``sol``
+        again if the interrupted run died before its first checkpoint). A resume writes the
+        public geometry again (the same bits), so a damaged public chunk is repaired.
         """
         if self.group is None:
             self.open()
@@ -168,47 +293,75 @@ class Store:
         if self.resume:
             n = self.group.attrs.get("n_elements")
             if n is not None and n != h.n_elements:
-                raise OptionError(f"cannot resume: the store holds a different mesh ({n} "
-                                  f"elements, this run {h.n_elements})", self.given)
+                raise StoreError(f"cannot resume: the store holds a different mesh ({n} "
+                                 f"elements, this run {h.n_elements})", self.given)
             restored = self.load_checkpoint(h)
+            # every check passed: from here the store describes this run (its stopping
+            # criteria), not yet complete
+            self.group.update_attributes({"settings": _jsonable(self.settings.as_dict()),
+                                          "complete": False})
+            self.write_hierarchy(h, reflectance)
             if restored is not None:
                 return restored
-        if self.group.attrs.get("generation") != h.generation:
+        elif self.group.attrs.get("generation") != h.generation:
             self.write_hierarchy(h, reflectance)
         return sol
 
     @_whole
     def _reopen(self) -> None:
         if not (Path(self.path) / "zarr.json").is_file():
-            raise OptionError("no solution store to resume from (run once without --resume)",
-                              self.given)
+            raise StoreError("no solution store to resume from (run once without --resume)",
+                             self.given)
         try:
             self.group = zarr.open_group(self.path, mode="r+")
         except Exception as err:  # a damaged or foreign directory: the user's to fix
-            raise OptionError(f"cannot open the solution store: {err}", self.given) from err
+            raise StoreError(f"cannot open the solution store: {err}", self.given) from err
         attrs = self.group.attrs
         if attrs.get("format") != FORMAT:
-            raise OptionError("not a daskrad solution store", self.given)
+            raise StoreError(f"not a daskrad solution store of this version (format "
+                             f"{attrs.get('format')!r}, this daskrad reads {FORMAT!r})",
+                             self.given)
         old = attrs.get("settings", {})
         new = _jsonable(self.settings.as_dict())
         changed = [k for k in SOLUTION_SETTINGS if old.get(k) != new.get(k)]
         if changed:
-            raise OptionError("cannot resume: the store was written with other settings ("
-                              + ", ".join(f"{k}={old.get(k)!r}" for k in changed)
-                              + "); use the same options or run without --resume", self.given)
+            raise StoreError("cannot resume: the store was written with other settings ("
+                             + ", ".join(f"{k}={old.get(k)!r}" for k in changed)
+                             + "); use the same options or run without --resume", self.given)
+        stored = attrs.get("inputs")
+        if self.inputs is not None and stored != self.inputs:
+            parts = [k for k in self.inputs if (stored or {}).get(k) != self.inputs[k]]
+            raise StoreError("cannot resume: the scene's " + " and ".join(parts)
+                             + " changed since the store was written; run without --resume",
+                             self.given)
 
     @_whole
     def write_hierarchy(self, h: Hierarchy, reflectance: np.ndarray) -> None:
-        """The public geometry arrays of DESIGN §7, for mesh generation ``h.generation``."""
+        """The public geometry (and, with a scene, the materials and lights) for mesh
+        generation ``h.generation``."""
         g = self.group
-        _put(g, "vertices", h.vertices, np.float64)
-        el = g.require_group("elements")
-        _put(el, "vertices", h.elem_verts, np.int32)
-        _put(el, "patch", h.elem_patch, np.int32)
-        _put(el, "area", h.elem_area, np.float64)
-        _put(el, "reflectance", reflectance, np.float32)
-        pa = g.require_group("patches")
-        _put(pa, "polygon", h.patch_polygon, np.int32)
+        _public(g, "vertices", h.vertices, np.float64)
+        _public(g, "elements/vertices", h.elem_verts, np.int32)
+        _public(g, "elements/patch", h.elem_patch, np.int32)
+        _public(g, "elements/material", h.elem_material, np.int32)
+        _public(g, "elements/area", h.elem_area, np.float64)
+        _public(g, "elements/normal", h.elem_normal, np.float64)
+        _public(g, "elements/reflectance", reflectance, np.float32)
+        _public(g, "patches/polygon", h.patch_polygon, np.int32)
+        if self.scene is not None:
+            m = self.scene.materials
+            _public(g, "elements/emission", math.pi * m.emission[h.elem_material], np.float32)
+            for name in ("diffuse", "emission", "specular", "shininess"):
+                _public(g, f"materials/{name}", getattr(m, name), np.float64)
+            _public(g, "materials/mirror", m.mirror, np.bool_)
+            g["materials"].update_attributes({"names": list(m.names)})
+            pl, dl = self.scene.point_lights, self.scene.directional_lights
+            _public(g, "lights/point_position", np.reshape(pl.position, (-1, 3)), np.float64)
+            _public(g, "lights/point_intensity", np.reshape(pl.intensity, (-1, 3)), np.float64)
+            _public(g, "lights/directional_direction", np.reshape(dl.direction, (-1, 3)),
+                    np.float64)
+            _public(g, "lights/directional_irradiance", np.reshape(dl.irradiance, (-1, 3)),
+                    np.float64)
         g.update_attributes({"generation": int(h.generation), "n_elements": h.n_elements,
                              "n_patches": h.n_patches})
 
@@ -216,70 +369,150 @@ class Store:
 
     @_whole
     def checkpoint(self, sol: Solution) -> None:
-        """Write the exact solver state into the slot not holding the last checkpoint."""
+        """Write the exact solver state into the slot not holding the last checkpoint.
+
+        The same state again (the final batch, then :meth:`finish` of the monitor) only
+        updates that slot's attributes: the arrays are the same bits, and the slot before it
+        stays as it was — often the state a resume with a tighter tolerance continues from.
+        """
         g = self.group
-        slot = 1 - int(g.attrs.get("checkpoint", 1)) if self._slot is None else 1 - self._slot
-        for name in ("radiosity", "direct", "unshot"):
-            self._fill(f"checkpoint/{slot}/{name}", getattr(sol, name), np.float64,
-                       compress=False)
-        s = g[f"checkpoint/{slot}"]
+        s_ = self.settings
         state = {"generation": self.generation, "iteration": int(sol.iteration),
                  "initial_rms": float(sol.initial_rms), "seconds": float(sol.seconds),
                  "converged": bool(sol.converged), "history": _jsonable(sol.history),
-                 "queued": _jsonable(sol.queued)}
-        s.attrs.put(state)
+                 "queued": _jsonable(sol.queued),
+                 # what a later run with other stopping criteria may continue from
+                 "tolerance": float(s_.tolerance), "max_iterations": int(s_.max_iterations),
+                 "open": _open(sol, s_)}
+        key = (int(sol.iteration), len(sol.history))
+        if self._slot is not None and self._written == key:
+            slot = self._slot
+            s = g[f"internal/checkpoint/{slot}"]
+            s.attrs.put({**state, "sha256": s.attrs["sha256"]})
+        else:
+            # never the last checkpoint, nor the last one a resume with a smaller tolerance
+            # or more iterations can continue from (``continue``): three slots
+            busy = {g.attrs.get("checkpoint"), g.attrs.get("continue"), self._slot}
+            slot = min(x for x in range(SLOTS) if x not in busy)
+            s = g.require_group("internal").require_group("checkpoint").require_group(str(slot))
+            arrays = {"radiosity": sol.radiosity, "direct": sol.direct, "unshot": sol.unshot}
+            for name, a in arrays.items():
+                _put(s, name, a, np.float64, compress=False, dims=_SLOT[name],
+                     units="W m-2", description=f"exact solver state: {name}")
+            s.attrs.put({**state, "sha256": {n: sha256(np.asarray(a, np.float64))
+                                             for n, a in arrays.items()}})
         # only now is the slot complete: name it (one atomic zarr.json replacement; not
         # attrs.update, which zarr 3 writes key by key: a client killed between two keys left
         # "checkpoint" naming this slot beside the previous iteration and history)
-        g.update_attributes({"iteration": state["iteration"], "converged": state["converged"],
-                             "history": state["history"], "checkpoint": slot})
-        self._slot = slot
-        self._fill("elements/radiosity", sol.radiosity, np.float32)
-        self._fill("elements/direct", sol.direct, np.float32)
-        self._fill("patches/unshot", sol.unshot, np.float32)
-
-    def _fill(self, path: str, data: np.ndarray, dtype, compress: bool = True) -> None:
-        """Write ``data`` into the array at ``path``: in place when this store made it with
-        the same shape (only its chunks are rewritten, each atomically: a checkpoint costs a
-        quarter of recreating six arrays: 11 ms instead of 38 ms of CPU for the Cornell box),
-        else created (:func:`_put`)."""
-        data = np.ascontiguousarray(data, dtype=dtype)
-        arr = self._arrays.get(path)
-        if arr is not None and arr.shape == data.shape:
-            if data.size:
-                arr[...] = data
-            return
-        self._arrays[path] = _put(self.group, path, data, compress=compress)
+        root = {"iteration": state["iteration"], "converged": state["converged"],
+                "history": state["history"], "checkpoint": slot}
+        if state["open"]:
+            root["continue"] = slot
+        g.update_attributes(root)
+        self._slot, self._written = slot, key
+        _public(g, "elements/radiosity", sol.radiosity, np.float32)
+        _public(g, "elements/direct", sol.direct, np.float32)
+        _public(g, "patches/unshot", sol.unshot, np.float32)
 
     @_whole
     def load_checkpoint(self, h: Hierarchy) -> Solution | None:
-        """The solver state of the last complete checkpoint, or None if there is none."""
-        slot = self.group.attrs.get("checkpoint")
-        if slot is None:
+        """The solver state to continue from, or None if there is none.
+
+        The last complete checkpoint, when it was written with this run's stopping criteria.
+        With other criteria (``--tolerance``, ``--max-iterations``), the latest slot that a
+        straight run with the new criteria passes through (see :func:`_open`);
+        none: :class:`StoreError`. The slot's arrays are checked against their sha256: a
+        damaged last checkpoint is refused, a torn older slot is skipped.
+        """
+        latest = self.group.attrs.get("checkpoint")
+        if latest is None:
             return None
-        s = self.group[f"checkpoint/{slot}"]
-        a = s.attrs
-        if a["generation"] != h.generation:
-            return None
-        self._slot = int(slot)
+        latest = int(latest)
+        tol, maxit = float(self.settings.tolerance), int(self.settings.max_iterations)
+        tried = []
+        others = [x for x in range(SLOTS) if x != latest]
+        cont = self.group.attrs.get("continue")
+        if cont in others:                  # the last open checkpoint first, then the other
+            others.remove(cont)
+            others.insert(0, cont)
+        for slot in (latest, *others):
+            try:
+                a = self.group[f"internal/checkpoint/{slot}"].attrs.asdict()
+            except KeyError:
+                if slot == latest:
+                    raise StoreError(f"internal/checkpoint/{slot}, the last checkpoint, is "
+                                     "missing; run again without --resume",
+                                     self.given) from None
+                continue
+            if a.get("generation") != h.generation:
+                if slot == latest:
+                    return None
+                continue
+            same = a.get("tolerance") == tol and a.get("max_iterations") == maxit
+            usable = same or (a.get("open") and tol <= a["tolerance"]
+                              and _fits(a["iteration"], a["queued"], self.settings))
+            tried.append(a)
+            if not usable:
+                continue
+            try:
+                sol = self._read_slot(slot, a)
+            except StoreError:
+                if slot == latest:
+                    raise
+                continue                     # torn while written: the older slot only
+            self._slot, self._written = slot, (int(a["iteration"]), len(a["history"]))
+            return sol
+        a = tried[0] if tried else {}
+        raise StoreError(
+            f"cannot resume with tolerance={tol:g}, max_iterations={maxit}: the store's "
+            f"checkpoints (iteration {a.get('iteration')}, written with tolerance="
+            f"{a.get('tolerance')!r}, max_iterations={a.get('max_iterations')!r}) are past "
+            "where a run with these criteria would have stopped; only a smaller tolerance or "
+            "more iterations continue a store; run without --resume", self.given)
+
+    def _read_slot(self, slot: int, a: dict) -> Solution:
+        s = self.group[f"internal/checkpoint/{slot}"]
+        arrays = {n: read_checked(s, n, self.given) for n in _SLOT}
+        for n, x in arrays.items():
+            if a.get("sha256", {}).get(n) != sha256(x):
+                raise StoreError(f"internal/checkpoint/{slot}/{n} does not match its "
+                                 "checkpoint's checksum; run again without --resume",
+                                 self.given)
+            if not np.isfinite(x).all():
+                raise StoreError(f"internal/checkpoint/{slot}/{n} holds NaN or infinite "
+                                 "values; run again without --resume", self.given)
         return Solution(
-            radiosity=s["radiosity"][...], direct=s["direct"][...], unshot=s["unshot"][...],
+            radiosity=arrays["radiosity"], direct=arrays["direct"], unshot=arrays["unshot"],
             initial_rms=a["initial_rms"], iteration=a["iteration"],
             history=[tuple(x) for x in a["history"]], converged=a["converged"],
             seconds=a["seconds"], queued=[list(q) for q in a["queued"]])
 
     @_whole
-    def finish(self, vertex_radiosity: np.ndarray) -> None:
-        """``vertex_radiosity (V, 3)``: B at the vertices as the image shows it (after the
-        final checkpoint, which :class:`~daskrad.distributed.monitor.Watch` writes)."""
-        _put(self.group, "vertex_radiosity", vertex_radiosity, np.float32)
-        self.group.update_attributes({"complete": True})
+    def finish(self, image) -> None:
+        """The rendered result (after the final checkpoint, which
+        :class:`~daskrad.distributed.monitor.Watch` writes): the vertex radiance the image
+        interpolates and its direct part, the camera and the render context (``daskrad
+        render`` and ``daskrad export`` read it back), then ``complete``."""
+        ctx = image.context
+        vertex_direct = image.vertex_direct
+        g = self.group
+        _public(g, "vertex_radiance", ctx.vertex_radiance, np.float32)
+        _public(g, "vertex_radiance_direct", vertex_direct, np.float32)
+        _public(g, "vertex_radiosity", ctx.vertex_radiance * math.pi, np.float32)
+        token = self.put_context("render", ctx)
+        cam = ctx.camera
+        g.update_attributes({
+            "complete": True, "render": token, "ambient": _jsonable(image.ambient),
+            "camera": {"eye": _jsonable(cam.eye), "look_at": _jsonable(cam.look_at),
+                       "up": _jsonable(cam.up), "fov": float(cam.fov),
+                       "width": int(cam.width), "height": int(cam.height)}})
 
     # --- task contexts --------------------------------------------------------------------
 
     @_whole
     def put_context(self, kind: str, ctx) -> str:
-        """Write a task context (a dataclass or NamedTuple of arrays) as ``context/<kind>``.
+        """Write a task context (a dataclass or NamedTuple of arrays) as
+        ``internal/context/<kind>``.
 
         Returns its token, a digest of the whole content. Arrays already in the store with
         the same digest are not written again (the grid, when only the vertices changed), and
@@ -292,16 +525,33 @@ class Store:
         digests = {name: _digest(a) for name, a in sorted(arrays.items())}
         token = hashlib.blake2b(json.dumps([meta, digests], sort_keys=True).encode(),
                                 digest_size=12).hexdigest()
-        g = self.group.require_group("context").require_group(kind)
+        g = self.group.require_group("internal").require_group("context").require_group(kind)
         if g.attrs.get("token") == token:
             return token
         old = g.attrs.get("digests", {})
         g.attrs.put({})            # no token while arrays change: a reader fails, never mixes
         for name, a in arrays.items():
             if old.get(name) != digests[name]:
-                _put(g, name.replace(".", "/"), a)
+                _put(g, name.replace(".", "/"), a,
+                     description=f"task context {kind}: field {name}")
         g.attrs.put({"meta": meta, "digests": digests, "token": token})
         return token
+
+
+def _open(sol: Solution, settings: Settings) -> bool:
+    """Whether a straight run with a smaller tolerance or more iterations passes through
+    ``sol``: batches are still queued (the solve had not stopped: a stop clears the queue and
+    may cut a batch short), and no batch so far was shortened to fit ``max_iterations``
+    (:func:`_fits`)."""
+    return bool(sol.queued) and _fits(sol.iteration, sol.queued, settings)
+
+
+def _fits(iteration: int, queued: list, settings: Settings) -> bool:
+    """No batch up to this state was cut to fit ``settings.max_iterations``, and none would be
+    before it: the solve sizes a batch ``min(batch, max_iterations − shots applied − shots in
+    flight)``, so a full batch after the queued ones still fits."""
+    return (int(iteration) + sum(len(q) for q in queued) + settings.batch
+            <= settings.max_iterations)
 
 
 def _digest(a: np.ndarray) -> str:
@@ -310,17 +560,40 @@ def _digest(a: np.ndarray) -> str:
     return d.hexdigest()
 
 
-def load_context(path: str, kind: str, token: str):
-    """Read back a task context written by :meth:`Store.put_context` (worker side)."""
-    g = zarr.open_group(path, mode="r")[f"context/{kind}"]
-    if g.attrs.get("token") != token:
-        raise RuntimeError(f"{path}: context/{kind} was replaced by another run "
+def load_context(path: str, kind: str, token: str | None = None):
+    """Read back a task context written by :meth:`Store.put_context` (worker side; ``token``
+    None: whichever is there). Every array is checked against its digest."""
+    g = zarr.open_group(path, mode="r")[f"internal/context/{kind}"]
+    if token is not None and g.attrs.get("token") != token:
+        raise RuntimeError(f"{path}: internal/context/{kind} was replaced by another run "
                            f"(token {g.attrs.get('token')}, this run {token})")
-    return _decode(g.attrs["meta"], g)
+    digests = g.attrs["digests"]
+
+    def array(name: str) -> np.ndarray:
+        a = g[name.replace(".", "/")][...]
+        if _digest(a) != digests.get(name):
+            raise StoreError(f"internal/context/{kind}/{name.replace('.', '/')} is damaged "
+                             "(its bytes do not match their digest)", path)
+        return a
+
+    return _decode(g.attrs["meta"], array)
 
 
 # Generic encoding of frozen dataclasses and NamedTuples: arrays become zarr arrays named by
-# their field path, the rest JSON. Only daskrad's own types are rebuilt on the way back.
+# their field path, the rest JSON. Only the types of :func:`_known_types` are rebuilt.
+
+def _known_types() -> dict:
+    """The types a store's JSON may name: the task contexts and what they hold. Nothing else
+    is ever built from a store (a crafted store cannot call an arbitrary function)."""
+    from daskrad.direct import DirectContext, Lights
+    from daskrad.formfactor.shooting import ShootContext
+    from daskrad.kernels.grid import Grid
+    from daskrad.render import RenderContext
+    from daskrad.scene.types import Camera
+
+    return {f"{t.__module__}:{t.__qualname__}": t
+            for t in (DirectContext, Lights, ShootContext, Grid, RenderContext, Camera)}
+
 
 def _encode(obj, prefix: str, arrays: dict):
     if isinstance(obj, np.ndarray):
@@ -343,20 +616,67 @@ def _encode(obj, prefix: str, arrays: dict):
     return {"value": value}
 
 
-def _decode(meta: dict, group):
+def _decode(meta: dict, array, types: dict | None = None):
+    """Rebuild what :func:`_encode` wrote; ``array(name)`` reads an array."""
+    types = _known_types() if types is None else types
     if "array" in meta:
-        return group[meta["array"].replace(".", "/")][...]
+        return array(meta["array"])
     if "value" in meta:
         return meta["value"]
     if "float" in meta:
         return float(meta["float"])
     if "list" in meta:
-        items = [_decode(m, group) for m in meta["list"]]
+        items = [_decode(m, array, types) for m in meta["list"]]
         return tuple(items) if meta["tuple"] else items
     if "dict" in meta:
-        return {k: _decode(m, group) for k, m in meta["dict"].items()}
-    module, _, name = meta["type"].partition(":")
-    if not module.startswith("daskrad."):
-        raise RuntimeError(f"refusing to build {meta['type']} from a store")
-    cls = getattr(importlib.import_module(module), name)
-    return cls(**{n: _decode(m, group) for n, m in meta["fields"].items()})
+        return {k: _decode(m, array, types) for k, m in meta["dict"].items()}
+    cls = types.get(meta.get("type"))
+    if cls is None:
+        raise StoreError(f"refusing to build {meta.get('type')!r} from a store (not one of "
+                         "the types daskrad writes)")
+    return cls(**{n: _decode(m, array, types) for n, m in meta["fields"].items()})
+
+
+class Result:
+    """A finished store, read-only: what ``daskrad render`` and ``daskrad export`` read.
+
+    Opening and reading never writes (``mode="r"``); every array read is checked against its
+    checksum, so a damaged store is refused with one line instead of rendering zeros.
+    """
+
+    def __init__(self, path: str | Path):
+        self.given = str(path)
+        p = Path(path)
+        if not (p / "zarr.json").is_file():
+            raise StoreError("not a solution store (no zarr.json; give the OUT.zarr a run "
+                             "wrote)", self.given)
+        try:
+            self.group = zarr.open_group(str(p), mode="r")
+        except Exception as err:
+            raise StoreError(f"cannot open the solution store: {err}", self.given) from err
+        self.attrs = self.group.attrs.asdict()
+        if self.attrs.get("format") != FORMAT:
+            raise StoreError(f"not a daskrad solution store of this version (format "
+                             f"{self.attrs.get('format')!r}, this daskrad reads {FORMAT!r})",
+                             self.given)
+        if not self.attrs.get("complete"):
+            raise StoreError("the store holds no finished solution (the run was interrupted: "
+                             "finish it with daskrad run ... --resume)", self.given)
+        for name in SCHEMA:               # the results, all of them checked (a few MB)
+            read_checked(self.group, name, self.given)
+
+    def render_context(self):
+        """The :class:`~daskrad.render.RenderContext` the run's image was rendered from."""
+        try:
+            ctx = load_context(str(Path(self.given).absolute()), "render",
+                               self.attrs.get("render"))
+        except StoreError:
+            raise
+        except Exception as err:
+            why = str(err).splitlines()[0] if str(err) else type(err).__name__
+            raise StoreError(f"cannot read the render context: {why}", self.given) from err
+        return ctx
+
+    def array(self, name: str) -> np.ndarray:
+        """A public array, checked."""
+        return read_checked(self.group, name, self.given)

@@ -2,10 +2,10 @@
 
 A task names what it needs — the store's path, the mesh generation, the context's token and a
 few ids or a pixel range — and finds the geometry in this module's cache, filled once per
-(store path, generation, token) from the store (DESIGN §4). The cache lives in the package, not
-in ``__main__``, so it persists between tasks in a worker process (STACK.md: a task that
-reopens zarr costs 50–85 ms, a cache hit ~2 ms). The voxel grid of the render context is read
-from the store, so it is built once (by the client) and loaded once per worker.
+(store path, generation, token) from the store (docs/design.md §4). The cache lives in the
+package, not in ``__main__``, so it persists between tasks in a worker process (docs/stack.md: a
+task that reopens zarr costs 50–85 ms, a cache hit ~2 ms). The voxel grid of the render context is
+read from the store, so it is built once (by the client) and loaded once per worker.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Form factors (DESIGN §2): the methods side by side with the patch's rows.
+"""Form factors (docs/design.md §2): the methods side by side with the patch's rows.
 
 - :mod:`daskrad.formfactor.methods`: form factors from differential areas to every element,
   one function per method, chosen by name from :data:`METHODS` (Doi's hemisphere base, its

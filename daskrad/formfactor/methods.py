@@ -1,4 +1,4 @@
-"""Form factors from differential shooting areas to receiving elements (DESIGN §2).
+"""Form factors from differential shooting areas to receiving elements (docs/design.md §2).
 
 Every method has one signature, so the solver and the Dask tasks pick one by name::
 
@@ -40,7 +40,7 @@ Methods (:data:`METHODS`):
 
 Rows are returned dense: a float64 row of 50,000 elements is 400 kB, cheap next to the
 rasterization. :func:`to_sparse` turns rows into the sparse form the Dask tasks ship
-(DESIGN §4: element ids and factors).
+(docs/design.md §4: element ids and factors).
 """
 
 from __future__ import annotations
@@ -163,7 +163,7 @@ def hemisphere_counts(points, normals, vertices, elem_verts, resolution=DEFAULT_
 
 
 def _conserve(rows, closed=None):
-    """Scale rows in place so a shot never sends more than the shooter holds (DESIGN §2).
+    """Scale rows in place so a shot never sends more than the shooter holds (docs/design.md §2).
 
     A row summing to more than 1 is scaled to 1. A row marked ``closed`` (every disc pixel won:
     every direction above the horizon sees some element, so the exact row sums to 1) is scaled

@@ -5,9 +5,9 @@ of patches"): it reads geometry only and returns small results, so it runs the s
 and on a Dask worker (:mod:`daskrad.distributed` calls :func:`shoot_rows` with a context it
 caches per store generation).
 
-Near field (DESIGN §2). A form factor sampled at the shooter's centroid is exact only far away:
-for a receiver at distance ``d`` from a shooter of radius ``r`` it errs by O((r/d)²), which is
-the error that dominates flat radiosity along junctions (wall meets ceiling). For receivers
+Near field (docs/design.md §2). A form factor sampled at the shooter's centroid is exact only
+far away: for a receiver at distance ``d`` from a shooter of radius ``r`` it errs by O((r/d)²),
+which is the error that dominates flat radiosity along junctions (wall meets ceiling). For receivers
 closer than ``NEAR_FIELD · r`` the shooter is not point-sampled: by reciprocity
 ``F_ij = F_ji · A_j / A_i``, and ``F_ji`` — from the receiver's centroid to the *whole* shooter
 polygon — is Lambert's contour integral, exact in the shooter's extent. Occlusion is taken from

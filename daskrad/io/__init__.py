@@ -1,4 +1,4 @@
-"""Step 5, output: the HDR image, its preview and the run report (DESIGN §7).
+"""Step 5, output: the HDR image, its preview and the run report (docs/design.md §7).
 
 The solution store (Zarr) is written by :mod:`daskrad.distributed.store`, the only layer that
 imports zarr.

@@ -32,8 +32,8 @@ def _removed_on_failure(tmp: Path):
 def write_exr(path: str | Path, rgb: np.ndarray) -> None:
     """Write linear radiance ``rgb : (H, W, 3)`` as a float32 scanline OpenEXR with ZIP compression.
 
-    STACK.md: OpenEXR writes a non-C-contiguous array as garbage, silently, and refuses float64;
-    hence the explicit contiguous float32 copy.
+    docs/stack.md: OpenEXR writes a non-C-contiguous array as garbage, silently, and refuses
+    float64; hence the explicit contiguous float32 copy.
     """
     import OpenEXR
 
@@ -59,33 +59,44 @@ def read_exr(path: str | Path) -> np.ndarray:
         return np.array(f.channels()["RGB"].pixels, dtype=np.float32)
 
 
-def tonemap(rgb: np.ndarray, exposure: float | None = None) -> np.ndarray:
-    """Linear radiance → 8-bit sRGB for the preview.
+def display(rgb: np.ndarray, exposure: float | None = None, stops: float = 0.0) -> np.ndarray:
+    """Linear radiance ``(..., 3)`` → linear display values in ``[0, 1]``, same shape.
 
-    Exposure is chosen so the 99th percentile of luminance maps to 0.9 (emitters, which are
-    far brighter than anything they light, then saturate instead of darkening the image),
-    followed by a Reinhard-style shoulder and the sRGB transfer curve.
-    Returns ``(H, W, 3) uint8``.
+    Exposure (a factor) is chosen, unless given, so the 99th percentile of luminance maps to
+    0.9 (emitters, which are far brighter than anything they light, then saturate instead of
+    darkening the image), times ``2 ** stops``; then a Reinhard-style shoulder.
     """
     rgb = np.nan_to_num(np.asarray(rgb, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
     rgb = np.maximum(rgb, 0.0)
     if exposure is None:
-        lum = rgb @ np.array([0.2126, 0.7152, 0.0722])
+        lum = rgb.reshape(-1, 3) @ np.array([0.2126, 0.7152, 0.0722])
         ref = np.percentile(lum, 99.0) if lum.size else 0.0
         exposure = 0.9 / ref if ref > 0 else 1.0
-    x = rgb * exposure
+    x = rgb * (exposure * 2.0 ** float(stops))
     x = x / (1.0 + x / 4.0) * 1.25  # soft shoulder; 1 → 1.0, keeps mid-tones linear-ish
-    x = np.clip(x, 0.0, 1.0)
+    return np.clip(x, 0.0, 1.0)
+
+
+def srgb8(x: np.ndarray) -> np.ndarray:
+    """Linear display values in ``[0, 1]`` → 8-bit sRGB (the sRGB transfer curve)."""
     srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
     return np.round(srgb * 255.0).astype(np.uint8)
 
 
-def write_png(path: str | Path, rgb: np.ndarray, exposure: float | None = None) -> None:
-    """Tone-mapped sRGB preview of linear ``rgb : (H, W, 3)``."""
+def tonemap(rgb: np.ndarray, exposure: float | None = None, stops: float = 0.0) -> np.ndarray:
+    """Linear radiance → 8-bit sRGB for the preview (:func:`display`, then :func:`srgb8`).
+    Returns ``(H, W, 3) uint8``."""
+    return srgb8(display(rgb, exposure, stops))
+
+
+def write_png(path: str | Path, rgb: np.ndarray, exposure: float | None = None,
+              stops: float = 0.0) -> None:
+    """Tone-mapped sRGB preview of linear ``rgb : (H, W, 3)``; ``stops`` brightens (> 0) or
+    darkens the automatic (or given) exposure by powers of two (``--exposure``)."""
     from PIL import Image
 
     path = Path(path)
     tmp = _atomic_target(path)
     with _removed_on_failure(tmp):
-        Image.fromarray(tonemap(rgb, exposure), mode="RGB").save(tmp, format="PNG")
+        Image.fromarray(tonemap(rgb, exposure, stops), mode="RGB").save(tmp, format="PNG")
         os.replace(tmp, path)

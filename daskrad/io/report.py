@@ -1,4 +1,4 @@
-"""The run report, ``OUT.json`` (DESIGN §7)."""
+"""The run report, ``OUT.json`` (docs/design.md §7)."""
 
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 ``nogil`` lets Dask worker threads run kernels concurrently; ``cache`` keeps the compiled code
 on disk so a fresh worker process loads it in tens of milliseconds instead of compiling again
-(STACK.md: 0.8–1.8 s per raster kernel on first compile).
+(docs/stack.md: 0.8–1.8 s per raster kernel on first compile).
 """
 
 from numba import njit

@@ -8,9 +8,9 @@ polygon, one-sided along its normal) gives the irradiance
 ``F`` Lambert's unoccluded point-to-polygon form factor (exact; the same
 :func:`daskrad.kernels.lambert.lambert_polygon` the shadow-ray method uses, so the unoccluded
 answer is the same bits for both methods) and ``V`` the visible fraction of the light. By
-Nusselt's analog (DESIGN §2) ``F`` is the area of the light's projection onto the base disc of
-the unit hemisphere over ``p``, over ``π``; and every point of the disc carries the same weight,
-so ``V`` is the fraction of the light's projected area that no occluder covers. The paper
+Nusselt's analog (docs/design.md §2) ``F`` is the area of the light's projection onto the base
+disc of the unit hemisphere over ``p``, over ``π``; and every point of the disc carries the same
+weight, so ``V`` is the fraction of the light's projected area that no occluder covers. The paper
 measures it on the disc, but only where the light is:
 
 1. Candidate occluders through the voxel grid: the triangles registered in the cells of the

@@ -1,4 +1,5 @@
-"""Direct light at points: point, directional and area lights with shadow rays (DESIGN §1 step 2).
+"""Direct light at points: point, directional and area lights with shadow rays
+(docs/design.md §1 step 2).
 
 One function, :func:`irradiance_one`, computes the irradiance ``H`` (W per unit area) arriving
 at a point ``p`` with unit normal ``n`` from every light, with shadows through the voxel grid;

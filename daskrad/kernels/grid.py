@@ -1,4 +1,4 @@
-"""The uniform voxel grid for rays (DESIGN §1 step 1; issue 2, item 5).
+"""The uniform voxel grid for rays (docs/design.md §1 step 1; issue 2, item 5).
 
 Every triangle is registered in each cell of a uniform grid it overlaps (exact triangle–box
 overlap by the separating-axis theorem, Akenine-Möller 2001, on a box enlarged by a small

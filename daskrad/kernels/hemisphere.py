@@ -1,4 +1,4 @@
-"""The hemisphere-base form factor (Doi; DESIGN §2): an item buffer on Nusselt's disc.
+"""The hemisphere-base form factor (Doi; docs/design.md §2): an item buffer on Nusselt's disc.
 
 From a differential area at ``p`` with unit normal ``n``, every receiving element is projected
 straight onto the base disc of the unit hemisphere over ``p``:
@@ -756,7 +756,7 @@ def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edg
 @jit
 def hemisphere_shots(points, normals, vertices, elem_verts, resolution, edge_angle,
                      plane_depth, horizon_eps):
-    """Hemisphere-base item buffer from each shooting point to all elements (DESIGN §2).
+    """Hemisphere-base item buffer from each shooting point to all elements (docs/design.md §2).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Lambert's contour formula: point-to-polygon form factors without occlusion (REFERENCES.md).
+"""Lambert's contour formula: point-to-polygon form factors without occlusion (docs/references.md).
 
 For a differential area at ``p`` with unit normal ``n`` and a planar polygon with corners
 ``v_i``, ``R_i = v_i - p``::
@@ -159,7 +159,7 @@ def _lambert(points, normals, vertices, elem_verts, mask, use_mask):
 @jit
 def lambert_polygon(px, py, pz, nx, ny, nz, corners, count):
     """Lambert's unoccluded form factor from the differential area ``(p, n)`` to the polygon
-    ``corners[:count] (count, 3)``, clipped to ``n · (x − p) ≥ 0`` (REFERENCES.md).
+    ``corners[:count] (count, 3)``, clipped to ``n · (x − p) ≥ 0`` (docs/references.md).
 
     Orientation is not checked here (the caller decides one-sidedness). The batch twin over
     elements is :func:`_lambert`, written out for speed (tests/test_kernel_twins.py holds the

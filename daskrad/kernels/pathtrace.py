@@ -117,7 +117,7 @@ def trace_image(grid, tri_normal, tri_rho, tri_ke, light_tris, light_cdf, light_
     tri_rho, tri_ke : (T, 3) float64, diffuse reflectance and emitted radiance
     light_tris : (L,) int64 emitting triangles; light_cdf : (L,) cumulative areas
     pl_pos, pl_int : (M, 3) point lights (W/sr); dl_dir, dl_irr : (K, 3) directional lights
-    eye, forward, right, up : (3,) the camera frame of DESIGN §6; tan_half = tan(fov/2)
+    eye, forward, right, up : (3,) the camera frame of docs/design.md §6; tan_half = tan(fov/2)
     """
     img = np.zeros((height, width, 3))
     for row in prange(height):

@@ -1,4 +1,4 @@
-"""T-vertex resolution for adaptive subdivision (DESIGN §3)."""
+"""T-vertex resolution for adaptive subdivision (docs/design.md §3)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The scanline variant of the hemisphere-base form factor (Doi, eq. 8; DESIGN §2).
+"""The scanline variant of the hemisphere-base form factor (Doi, eq. 8; docs/design.md §2).
 
 Each element is culled, clipped, edge-split and projected onto the base disc exactly as for the
 item buffer (:func:`daskrad.kernels.hemisphere.project_element`). Instead of counting pixel

@@ -1,4 +1,5 @@
-"""Per-pixel lighting: direct light and Phong highlights at ray hits (DESIGN §1 step 4, eq. 9).
+"""Per-pixel lighting: direct light and Phong highlights at ray hits
+(docs/design.md §1 step 4, eq. 9).
 
 The renderer interpolates vertex radiance everywhere, then calls :func:`direct_at_hits` on the
 few hits that need more: hits on elements whose vertex colours spread more than ``Rdiff``

@@ -1,4 +1,4 @@
-"""Uniform subdivision of input polygons into patches and elements (DESIGN §1, step 1).
+"""Uniform subdivision of input polygons into patches and elements (docs/design.md §1, step 1).
 
 Two kernels, one per polygon kind, fill preallocated output arrays at per-polygon offsets that
 the caller computed (``np.cumsum`` of the counts), so every polygon is independent and the

@@ -1,4 +1,4 @@
-"""The client's radiosity update for one shot (DESIGN §4), one pass over the receivers.
+"""The client's radiosity update for one shot (docs/design.md §4), one pass over the receivers.
 
 Replaces a NumPy version that gathered, multiplied and ran three ``bincount`` passes per shot:
 the update is the client's share of a shot's time, and on a 2-core machine the client competes

@@ -1,4 +1,4 @@
-"""The polygon → patch → element hierarchy (DESIGN §1 step 1, §3)."""
+"""The polygon → patch → element hierarchy (docs/design.md §1 step 1, §3)."""
 
 from daskrad.mesh.hierarchy import (
     build_hierarchy,

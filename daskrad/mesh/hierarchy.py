@@ -1,4 +1,4 @@
-"""Step 1 of the pipeline: input polygons → patches → elements (DESIGN §1, §3).
+"""Step 1 of the pipeline: input polygons → patches → elements (docs/design.md §1, §3).
 
 Every input polygon (a planar convex quad or a triangle) is cut into one uniform lattice of
 elements; patches are blocks of that lattice. Quads become bilinear ``n × m`` grids of quads,
@@ -44,9 +44,9 @@ def default_sizes(scene: Scene) -> tuple[float, float]:
     box, diagonal ≈ 961 mm, gets 120 mm patches: ~200 patches over its 26 polygons), coarse
     enough that shooting converges in a few hundred steps, fine enough that a patch is
     mostly far from its receivers compared with its size, where a point shooter is accurate
-    (DESIGN §2). Elements at a quarter of that (30 mm: 16 per patch, ~3,000 in the Cornell box)
-    resolve the shading gradients along wall junctions that flat radiosity gets wrong, and
-    adaptive refinement (step 2) adds more only where the light changes quickly.
+    (docs/design.md §2). Elements at a quarter of that (30 mm: 16 per patch, ~3,000 in the
+    Cornell box) resolve the shading gradients along wall junctions that flat radiosity gets wrong,
+    and adaptive refinement (step 2) adds more only where the light changes quickly.
     """
     if len(scene.polygons) == 0:
         raise SceneError("the scene has no polygons", scene.path)
@@ -298,8 +298,9 @@ def element_vertex_adjacency(h: Hierarchy) -> tuple[np.ndarray, np.ndarray, np.n
 def vertex_average(h: Hierarchy, elem_values: np.ndarray) -> np.ndarray:
     """Area-weighted average of the elements around each vertex.
 
-    This is how element radiosity becomes vertex radiosity for Gouraud interpolation (DESIGN
-    §1, step 4). Vertices belong to one polygon, so values never mix across polygons.
+    This is how element radiosity becomes vertex radiosity for Gouraud interpolation
+    (docs/design.md §1, step 4). Vertices belong to one polygon, so values never mix across
+    polygons.
 
     Parameters
     ----------

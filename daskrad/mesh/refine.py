@@ -1,4 +1,4 @@
-"""Adaptive subdivision around shadow boundaries (DESIGN §1 step 2; issue 5, item 2).
+"""Adaptive subdivision around shadow boundaries (docs/design.md §1 step 2; issue 5, item 2).
 
 An element whose corner values (the reflected direct light ``ρ · H`` at its vertices) spread by
 more than ``threshold`` relative to the local level is split in four — a quad at its edge

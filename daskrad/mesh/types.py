@@ -1,4 +1,4 @@
-"""The polygon → patch → element hierarchy as structure of arrays (DESIGN §3)."""
+"""The polygon → patch → element hierarchy as structure of arrays (docs/design.md §3)."""
 
 from __future__ import annotations
 

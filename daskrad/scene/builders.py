@@ -1,4 +1,4 @@
-"""Scenes built in code, for tests and benchmarks with exact answers (REFERENCES.md).
+"""Scenes built in code, for tests and benchmarks with exact answers (docs/references.md).
 
 ``box_scene`` is a closed axis-aligned box: six faces, each its own material, each face a grid
 of ``subdivisions²`` quad polygons. The furnace (``B = E/(1 − ρ)``) and the six-patch cube are

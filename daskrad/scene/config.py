@@ -1,4 +1,4 @@
-"""The TOML sidecar: camera and lights that a mesh file cannot hold (DESIGN §6).
+"""The TOML sidecar: camera and lights that a mesh file cannot hold (docs/design.md §6).
 
 Schema (every key below, nothing else; an unknown key or a wrong type is a :class:`SceneError`
 naming the TOML file)::

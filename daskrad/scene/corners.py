@@ -1,4 +1,4 @@
-"""Corner arrays: the one definition of a polygon's triangles (DESIGN §3).
+"""Corner arrays: the one definition of a polygon's triangles (docs/design.md §3).
 
 Polygons, patches and elements are all ``corners : (n, 4) int`` arrays of vertex ids with
 ``-1`` in column 3 for a triangle. A planar convex quad ``(a, b, c, d)`` is the two triangles

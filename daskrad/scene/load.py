@@ -1,4 +1,5 @@
-"""``load_scene``: a mesh file (+ its TOML sidecar) → a validated :class:`Scene` (DESIGN §6)."""
+"""``load_scene``: a mesh file (+ its TOML sidecar) → a validated :class:`Scene`
+(docs/design.md §6)."""
 
 from __future__ import annotations
 

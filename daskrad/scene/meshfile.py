@@ -1,4 +1,4 @@
-"""PLY, STL and glTF/GLB through trimesh (DESIGN §6).
+"""PLY, STL and glTF/GLB through trimesh (docs/design.md §6).
 
 trimesh gives one geometry per material; each node of ``scene.graph.nodes_geometry`` places a
 geometry with its own transform. These formats hold triangles (trimesh splits PLY quads into

@@ -1,6 +1,6 @@
-"""Wavefront OBJ and MTL, read directly (DESIGN §6).
+"""Wavefront OBJ and MTL, read directly (docs/design.md §6).
 
-Why not ``trimesh.load_scene`` for OBJ (STACK.md measured it; checked again with trimesh 5.2):
+Why not ``trimesh.load_scene`` for OBJ (docs/stack.md measured it; checked again with trimesh 5.2):
 
 * it splits every quad into two triangles, and where the halves end up depends on its code
   path (a chunk of only quads gives all first halves, then all second halves; a mixed chunk
@@ -51,7 +51,7 @@ class MtlMaterial:
     extra: dict = field(default_factory=dict)
 
     def resolved(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, bool]:
-        """``(diffuse, emission, specular, shininess, mirror)`` by the rules of DESIGN §6.
+        """``(diffuse, emission, specular, shininess, mirror)`` by the rules of docs/design.md §6.
 
         No ``Ks``, or ``illum`` 0 or 1, means no specular part; ``illum 3`` is a mirror.
         """

@@ -1,4 +1,5 @@
-"""Faces of any corner count → input polygons: planar convex quads and triangles (DESIGN §1, §3).
+"""Faces of any corner count → input polygons: planar convex quads and triangles
+(docs/design.md §1, §3).
 
 Every function keeps the file's winding: a polygon's normal ``(v1 - v0) × (v2 - v0)`` points the
 way the face's own (Newell) normal points, which is the side the file says is lit. Nothing here

@@ -1,4 +1,4 @@
-"""The scene as plain arrays (DESIGN §3, §6).
+"""The scene as plain arrays (docs/design.md §3, §6).
 
 A :class:`Scene` is what step 1 reads from disk, before any meshing: input polygons (triangles
 and planar convex quads), one material per polygon, the TOML's lights and camera. Units are the
@@ -78,7 +78,7 @@ class DirectionalLights:
 class Camera:
     """A pinhole camera. ``fov`` is the horizontal field of view in degrees.
 
-    Convention (DESIGN §6): ``forward = normalize(look_at - eye)``, ``right = forward × up``
+    Convention (docs/design.md §6): ``forward = normalize(look_at - eye)``, ``right = forward × up``
     (normalized), ``true_up = right × forward``; image x grows along ``right``, image row 0 is at
     the top. Seen from the front of the Cornell box the red wall (x ≈ 550) is on the left.
     """

@@ -1,4 +1,4 @@
-"""Checks every scene goes through, from a file or from arrays (DESIGN §6, §7).
+"""Checks every scene goes through, from a file or from arrays (docs/design.md §6, §7).
 
 Each refusal is a :class:`SceneError` naming the file and the problem; a user can fix it.
 """

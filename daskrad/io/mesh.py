@@ -1,0 +1,64 @@
+"""The baked lighting as a mesh file: ``daskrad export`` (PLY, glTF binary, OBJ via trimesh).
+
+Every vertex carries its radiance ``L = B / π`` as the renderer interpolates it (ambient term
+added, T-vertices resolved), linear, plus a colour for viewers:
+
+- **PLY**: ``red, green, blue, alpha`` (uchar, sRGB-encoded display colour, what MeshLab and
+  CloudCompare show) and ``radiance_0..2`` (float32, linear radiance, W·m⁻²·sr⁻¹ per the
+  scene's unit of area).
+- **glTF binary (.glb)**: ``COLOR_0`` (normalized unsigned byte, **linear** display colour: the
+  glTF specification defines vertex colours as linear, and a viewer encodes to sRGB on
+  output) and the application attribute ``_RADIANCE`` (float32 VEC3, linear radiance).
+- **OBJ**: ``v x y z r g b`` with the sRGB display colour in [0, 1] (the common extension);
+  OBJ has no place for a linear float attribute.
+
+The display colour is the PNG's tone curve (:func:`daskrad.io.image.display`) with the
+exposure chosen over the vertices, shifted by ``stops``.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from daskrad.errors import OptionError
+from daskrad.io.image import display, srgb8
+
+#: Suffixes :func:`write_mesh` writes and the trimesh file type of each.
+FORMATS = {".ply": "ply", ".glb": "glb", ".obj": "obj"}
+
+
+def write_mesh(path: str | Path, vertices: np.ndarray, triangles: np.ndarray,
+               radiance: np.ndarray, stops: float = 0.0) -> None:
+    """Write ``vertices (V, 3) float64`` and ``triangles (T, 3) int`` (counter-clockwise from
+    the lit side) with per-vertex ``radiance (V, 3)`` to ``path`` (.ply, .glb or .obj),
+    atomically (a temporary file beside it, renamed)."""
+    import trimesh
+
+    path = Path(path)
+    kind = FORMATS.get(path.suffix.lower())
+    if kind is None:
+        raise OptionError(f"the export must end in one of {', '.join(FORMATS)}, "
+                          f"got {path.name}")
+    if not path.parent.is_dir():
+        raise OptionError(f"no such directory for the export: {path.parent}")
+    radiance = np.asarray(radiance, np.float64)
+    shown = display(radiance, None, stops)
+    linear8 = np.round(shown * 255.0).astype(np.uint8)
+    srgb = srgb8(shown)
+    alpha = np.full((len(vertices), 1), 255, np.uint8)
+    colour = np.hstack([linear8 if kind == "glb" else srgb, alpha])
+    mesh = trimesh.Trimesh(vertices=np.asarray(vertices, np.float64),
+                           faces=np.asarray(triangles, np.int64), vertex_colors=colour,
+                           process=False)
+    if kind == "ply":
+        for c in range(3):
+            mesh.vertex_attributes[f"radiance_{c}"] = radiance[:, c].astype(np.float32)
+    elif kind == "glb":
+        mesh.vertex_attributes["_RADIANCE"] = radiance.astype(np.float32)
+    data = mesh.export(file_type=kind)
+    tmp = path.with_name(f".{path.name}.partial{path.suffix}")
+    tmp.write_bytes(data if isinstance(data, bytes) else data.encode())
+    os.replace(tmp, path)
