@@ -12,7 +12,7 @@ from daskrad.distributed.executor import InProcess, default_threads
 from daskrad.preprocess import preprocess
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
-from tests.conftest import SCENES
+from tests.helpers import SCENES
 
 #: Penumbra shooters (the blocks), re-shots from the row cache, subdivision around the lights,
 #: per-pixel pixels and a Phong-free scene; small enough for a test.

@@ -16,7 +16,7 @@ from daskrad.kernels.unshadowed import unshadowed_elements
 from daskrad.preprocess import preprocess
 from daskrad.scene import load_scene, scene_from_arrays
 from daskrad.settings import Settings
-from tests.conftest import SCENES
+from tests.helpers import SCENES
 
 SMALL = Settings(patch_size=100.0, element_size=40.0, resolution=64, tolerance=1e-2,
                  width=48, height=48, spp=2, workers=0)

@@ -11,7 +11,7 @@ import sys
 import pytest
 
 from daskrad import cli, warmup
-from tests.conftest import SCENES
+from tests.helpers import SCENES
 
 CORNELL = SCENES / "cornell_box.obj"
 

@@ -22,7 +22,7 @@ import pytest
 
 from daskrad import cli
 from daskrad.io import read_exr
-from tests.test_distributed import assert_same_run
+from tests.helpers import assert_same_run
 
 REPO = Path(__file__).resolve().parent.parent
 SCENE = REPO / "scenes" / "cornell_box.obj"
