@@ -18,7 +18,7 @@ Four tables, one JSON (``benchmarks/results/speed.json``):
 3. **Workers**: a whole converging run (re-shots included) of a scene of ≥ 50k elements with
    ``--workers 0`` (threads), 1 and 2 (LocalCluster start included): the Cornell box with
    7-unit elements by default, or the scenes given with ``--scene PATH`` (e.g. the office
-   interiors of ``../shared/scenes/``; never commit those).
+   interiors converted to OBJ, passed by path; never commit those).
 
 ``python -m benchmarks.bench_speed [--quick] [--scene PATH ...] [--no-cold]``; ``--quick`` is
 a smoke run (one setting, one sample count, no cold start, a small scene for the workers).

@@ -57,6 +57,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
     replaced = outputs.earlier()
     store = Store(outputs.working_store(resume), settings, resume=resume, scene=scene)
     ex = executor or executor_for(settings, store)
+    ex.use_store(store)
     try:
         store.open()           # a new store, or the checkpoint to resume from
         _announce(ex, settings)

@@ -101,6 +101,13 @@ class DaskExecutor:
 
     # --- the executor interface -------------------------------------------------------------
 
+    def use_store(self, store: Store) -> None:
+        """Put the task contexts in ``store`` from now on (the run's own store: a new run's
+        partial store, whatever store the executor was made with)."""
+        if store is not self.store:
+            self.store = store
+            self._probed = False
+
     def set_geometry(self, shoot_ctx: shooting.ShootContext, generation: int = 0) -> None:
         token = self.store.put_context("shoot", shoot_ctx)
         self.geometry = (generation, token)

@@ -2,6 +2,7 @@
 
 Both executors expose the same calls, so the pipeline is written once:
 
+- ``use_store(store)``: where task contexts go (the run's store);
 - ``set_geometry(shoot_ctx, generation=0)``: the form-factor task's context;
 - ``shots(batch_no, patch_ids)`` → handle with ``.result()`` = rows of
   :func:`daskrad.formfactor.shooting.shoot_rows`;
@@ -81,6 +82,9 @@ class InProcess:
         self.threads = default_threads() if threads is None else max(1, int(threads))
         self._pool: ThreadPoolExecutor | None = None
         self._lock = threading.Lock()
+
+    def use_store(self, store) -> None:
+        """In-process tasks read their contexts from memory: no store needed."""
 
     def set_geometry(self, shoot_ctx: shooting.ShootContext, generation: int = 0) -> None:
         self.shoot_ctx = shoot_ctx
