@@ -15,6 +15,13 @@ PLANAR_QUAD = 1e-9
 #: Shadow and secondary rays start ``RAY_OFFSET * diag`` off the surface along its normal.
 RAY_OFFSET = 1e-7
 
+#: A vertex's direct light is the limit from inside its polygon: it is evaluated (and its shadow
+#: rays start) ``VERTEX_NUDGE * diag`` from the vertex towards the polygon's centroid. 100 ray
+#: offsets: a surface meeting the polygon at the vertex (a junction) then lies farther than the
+#: offset from the ray's origin and blocks what would cross it, and the point moves by a
+#: hundred-thousandth of the scene, which no light gradient resolves.
+VERTEX_NUDGE = 1e-5
+
 #: Rays hit triangles within ``RAY_EPS * diag`` of an edge (watertightness across shared edges).
 RAY_EPS = 1e-12
 
@@ -50,6 +57,13 @@ COPLANAR = 1e-9
 #: a sliver) covers centres that are chord artefacts shared with its coplanar neighbours, where
 #: the item buffer's tie-break (lower index) made it lose whole pixels (furnace error 9.4 %).
 SUBPIXEL_AREA_PX = 1.0
+
+#: An edge of one polygon lies on another polygon's plane (a contact line, where a block stands
+#: on the floor) when both its ends are within ``CONTACT * diag`` of that plane: the polygon is
+#: then cut along it before meshing (:mod:`daskrad.mesh.contacts`). Looser than ``COPLANAR``:
+#: a modelled block rests on the floor to the modeller's precision, not to round-off, and a
+#: gap of a millionth of the scene lets no visible light through.
+CONTACT = 1e-6
 
 #: Two coordinates closer than this, relative to the points' magnitudes, tie when the raster
 #: orders an edge's endpoints (:func:`daskrad.kernels.geometry.lex_less`: round-off must not

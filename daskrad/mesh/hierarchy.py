@@ -1,6 +1,8 @@
 """Step 1 of the pipeline: input polygons → patches → elements (DESIGN §1, §3).
 
-Every input polygon (a planar convex quad or a triangle) is cut into one uniform lattice of
+Input polygons are first cut along their contact lines, where another polygon stands on them
+(:mod:`daskrad.mesh.contacts`); the hierarchy's polygons are those pieces.
+Every polygon (a planar convex quad or a triangle) is cut into one uniform lattice of
 elements; patches are blocks of that lattice. Quads become bilinear ``n × m`` grids of quads,
 triangles ``k²`` similar triangles. Vertices are shared by all elements and patches of one
 polygon (continuous Gouraud interpolation, no T-vertex inside a polygon) and never between two
@@ -20,6 +22,7 @@ import numpy as np
 
 from daskrad.errors import OptionError, SceneError
 from daskrad.kernels.subdivide import subdivide_quads, subdivide_triangles
+from daskrad.mesh.contacts import cut_at_contacts
 from daskrad.mesh.types import Hierarchy
 from daskrad.scene.types import Scene
 
@@ -114,6 +117,9 @@ def build_hierarchy(scene: Scene, patch_size: float | None = None,
     patch_size = _check_size("patch size", patch_size)
     element_size = _check_size("element size", element_size)
 
+    # polygons cut along the lines where others stand on them (issue 14); a piece keeps its
+    # input polygon's normal bit for bit, so the pieces of a polygon stay exactly coplanar
+    scene, _, poly_normal = cut_at_contacts(scene)
     corners, is_quad = _corners(scene)
     nq = len(corners)
     edge = np.linalg.norm(np.roll(corners, -1, axis=1) - corners, axis=2)  # (Q,4): c_i c_i+1
@@ -158,10 +164,6 @@ def build_hierarchy(scene: Scene, patch_size: float | None = None,
                             vertices, elem_verts, elem_patch, patch_verts)
 
     patch_polygon = np.repeat(np.arange(nq, dtype=np.int32), n_patch)
-    newell = _polygon_normals(corners, is_quad)
-    length = np.linalg.norm(newell, axis=1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        poly_normal = newell / length
     elem_polygon = patch_polygon[elem_patch]
     elem_normal = poly_normal[elem_polygon]
     elem_area, elem_centroid = _areas_centroids(vertices, elem_verts, elem_normal)
