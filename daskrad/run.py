@@ -204,7 +204,8 @@ def _render_context(scene, settings, h, reflectance, sol, amb, extra, grid_parts
         elem_shininess=mats.shininess[h.elem_material], elem_mirror=mats.mirror[h.elem_material],
         lights=direct.lights_of(dctx) if (H is not None and dctx is not None) else None,
         rdiff=settings.rdiff if settings.per_pixel else None,
-        mirror_depth=settings.mirror_depth, diagonal=scene.diagonal)
+        mirror_depth=settings.mirror_depth, diagonal=scene.diagonal,
+        direct_context=dctx if H is not None else None, tvertices=tv)
 
 
 def _direct_pass(scene, settings, h, grid, tris, tri_verts, tri_elem, emission, executor,
