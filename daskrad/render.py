@@ -371,6 +371,13 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
 
     if lights is not None and lights.empty:
         lights = None
+    if rdiff is not None and direct_context is not None:
+        # indirect light gathered at vertices beside a junction, where element averages miss
+        # the near field (the foot of a block's face on a lit floor)
+        delta = _junction_gather(ctx, direct_context, tvertices, elem_verts, elem_reflectance,
+                                 elem_emission, vertex_indirect, diagonal)
+        ctx = replace(ctx, vertex_radiance=ctx.vertex_radiance + delta)
+        vertex_indirect = vertex_indirect + delta
     hard, vertex_hard = None, None
     if rdiff is not None and lights is not None and direct_context is not None:
         hard, vertex_hard = _hard_part(direct_context, tvertices, elem_verts, elem_reflectance,
@@ -425,3 +432,50 @@ def _hard_part(dctx, tvertices, elem_verts: np.ndarray, elem_reflectance: np.nda
     tv = tvertices if tvertices is not None else TVertices.empty()
     vertex_hard = resolve_tvertices(rho * H, tv) / math.pi
     return direct.lights_of(bare), vertex_hard
+
+
+#: A vertex is beside a junction when another surface lies within ``JUNCTION_REACH · diag`` in
+#: its hemisphere (one of 4 × 4 probe rays); its indirect light is then gathered over
+#: ``GATHER_SIDE²`` stratified rays.
+JUNCTION_REACH = 0.02
+GATHER_SIDE = 32
+
+
+def _junction_gather(ctx: RenderContext, dctx, tvertices, elem_verts: np.ndarray,
+                     elem_reflectance: np.ndarray, elem_emission: np.ndarray,
+                     vertex_indirect: np.ndarray, diagonal: float) -> np.ndarray:
+    """``(V, 3)``: the change of vertex radiance when the indirect light of the vertices
+    beside a junction is gathered (:mod:`daskrad.kernels.gather`) instead of averaged from
+    their elements: ``ρ · mean(L)`` over cosine-distributed rays from the vertex, ``L`` the
+    radiance the solution shows (Gouraud of ``ctx.vertex_radiance``) less the emitters'
+    ``Ke`` when the direct pass lit the vertices with them (two-pass), minus the vertex's
+    current indirect radiance. T-vertices keep their resolved values (no seam)."""
+    from daskrad.kernels.gather import gather_radiance, near_surface
+
+    V = len(ctx.vertex_radiance)
+    delta = np.zeros((V, 3))
+    pts = np.ascontiguousarray(dctx.area_points)
+    nrm = np.ascontiguousarray(dctx.normals)
+    used = np.zeros(V, bool)
+    used[elem_verts[elem_verts >= 0]] = True
+    if tvertices is not None and len(tvertices.vertex):
+        used[tvertices.vertex] = False
+    cand = np.flatnonzero(used)
+    if len(cand) == 0:
+        return delta
+    off = float(dctx.offset)
+    near = near_surface(ctx.grid, pts[cand], nrm[cand], off, JUNCTION_REACH * diagonal, 4)
+    idx = cand[near]
+    if len(idx) == 0:
+        return delta
+    exclude = (np.ascontiguousarray(elem_emission, dtype=np.float64)
+               if len(dctx.emitter_corners) else np.zeros((len(elem_reflectance), 3)))
+    L = gather_radiance(ctx.grid, ctx.tri_verts, ctx.tri_element, ctx.elem_normal,
+                        np.ascontiguousarray(ctx.vertex_radiance), exclude,
+                        np.ascontiguousarray(pts[idx]), np.ascontiguousarray(nrm[idx]),
+                        idx.astype(np.int64), off, GATHER_SIDE)
+    owner = np.broadcast_to(np.arange(len(elem_verts))[:, None], elem_verts.shape)
+    rho = np.zeros((V, 3))
+    rho[elem_verts[elem_verts >= 0]] = elem_reflectance[owner[elem_verts >= 0]]
+    delta[idx] = rho[idx] * L - vertex_indirect[idx]
+    return delta

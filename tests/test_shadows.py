@@ -114,3 +114,49 @@ def test_light_outside_a_closed_room_leaves_it_black_and_warns(tmp_path, capsys)
     inside = shadow_scenes.closed_box_point(tmp_path)
     report = run(inside, out, Settings(width=32, height=32, workers=0), progress=False)
     assert read_exr(out).mean() > 0.05 and not report["warnings"]
+
+
+def _wall_on_floor():
+    """A 4 × 4 floor (ρ 0.5) lit straight down by a sun of 2 W/m², and a wall 1 high (ρ 0.2)
+    standing on its back edge, facing it, lit by nothing but the floor."""
+    v = np.array([[-2, 0, -2], [-2, 0, 2], [2, 0, 2], [2, 0, -2],
+                  [-2, 0, -2], [2, 0, -2], [2, 1, -2], [-2, 1, -2]], float)
+    return scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7]]), [0, 1],
+                             diffuse=[[0.5] * 3, [0.2] * 3], emission=[[0.0] * 3] * 2,
+                             directional_lights=([[0.0, -1.0, 0.0]], [[2.0, 2.0, 2.0]]))
+
+
+def test_foot_of_a_wall_gathers_the_lit_floor_beside_it():
+    # At the wall's foot the floor (radiance ρ_f E / π) fills the part F of the hemisphere
+    # that Lambert's formula gives: the foot's radiance is ρ_w ρ_f E F / π. Element averages
+    # take the light of points half an element up, where the floor fills less; the gather at
+    # vertices beside a junction takes it at the vertex.
+    from daskrad.kernels.direct import lambert_polygon
+
+    scene = _wall_on_floor()
+    opts = dict(patch_size=1.0, element_size=0.5, subdivide=0.0)
+    ctx, h = render_context(scene, **opts)
+    plain, _ = render_context(scene, per_pixel=False, **opts)
+    foot = _wall_vertices(h, y=0.0, xmax=1.0)
+    assert len(foot) >= 3
+    F = np.array([lambert_polygon(x, 1e-5 * scene.diagonal, -2.0, 0.0, 0.0, 1.0,
+                                  scene.vertices[[0, 1, 2, 3]], 4) for x in h.vertices[foot, 0]])
+    exact = 0.2 * 0.5 * 2.0 * F / math.pi
+    # the floor also takes light back from the wall (≤ ρ_f ρ_w / 4 = 2.5 % of its own) and
+    # 32 × 32 stratified rays estimate F to a few 1e-3: 4 %
+    np.testing.assert_allclose(ctx.vertex_radiance[foot, 0], exact, rtol=0.04)
+    # element averages (the plain context) are farther off (the test can fail)
+    assert np.all(plain.vertex_radiance[foot, 0] < 0.93 * exact)
+
+
+def _wall_vertices(h, y, xmax):
+    """The wall's vertices (polygon facing +z) at height ``y`` with ``|x| ≤ xmax``."""
+    from daskrad.mesh import vertex_polygon
+
+    vp = vertex_polygon(h)
+    wall = np.zeros(len(h.vertices), bool)
+    normal_z = np.zeros(len(h.polygon_material))
+    normal_z[h.patch_polygon] = h.patch_normal[:, 2]
+    wall[vp >= 0] = normal_z[vp[vp >= 0]] > 0.5
+    return np.flatnonzero(wall & (np.abs(h.vertices[:, 1] - y) < 1e-12)
+                          & (np.abs(h.vertices[:, 0]) <= xmax))
