@@ -56,7 +56,7 @@ from tests import shadow_scenes  # noqa: E402
 RESULTS = Path(__file__).parent / "results"
 SIZE = 128
 SPP = 2048
-DASKRAD_SPP = 16
+DASKRAD_SPP = 64
 #: Half-width of the contact band along a block's foot, as a fraction of the scene diagonal
 #: (Cornell box: 29 mm; the floor is seen at a grazing angle, so this is about two pixels).
 CONTACT_WIDTH = 0.03
