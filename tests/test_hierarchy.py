@@ -453,7 +453,7 @@ def cornell_scene(path) -> Scene:
 
 def test_cornell_box_defaults(scenes_dir):
     """The default sizes give the Cornell box 100–400 patches and 1,500–5,000 elements (the
-    floor cut along the blocks' feet into 14 pieces, issue 14: 341 patches, 251 uncut)."""
+    floor cut along the blocks' feet into 26 quads, issue 14: 309 patches, 251 uncut)."""
     path = scenes_dir / "cornell_box.obj"
     if not path.exists():
         pytest.skip("bundled Cornell box missing")
@@ -464,7 +464,7 @@ def test_cornell_box_defaults(scenes_dir):
     assert 100 <= h.n_patches <= 400
     assert 1500 <= h.n_elements <= 5000
     cut, parent, _ = cut_at_contacts(scene)
-    assert np.bincount(parent).tolist() == [14] + [1] * (len(scene.polygons) - 1)  # the floor
+    assert np.bincount(parent).tolist() == [26] + [1] * (len(scene.polygons) - 1)  # the floor
     check_invariants(cut, h, ps, es)
 
 

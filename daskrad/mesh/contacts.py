@@ -12,8 +12,7 @@ So polygons are cut along every contact line before they are meshed: the support
 each *contact edge* (an edge of another polygon lying in the polygon's plane, whose polygon
 rises on the lit side) cuts every piece the edge passes through, BSP-fashion, into convex
 pieces; elements then never straddle a contact line and Gouraud interpolation never mixes the
-two sides. Pieces are returned as quads and triangles (a convex ``m``-gon is fanned into
-``⌊(m − 2) / 2⌋`` quads and at most one triangle), in the polygon's winding.
+two sides. Pieces are returned as convex quads in the polygon's winding (:func:`_fan`).
 """
 
 from __future__ import annotations
@@ -126,7 +125,13 @@ def _crosses(piece: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray, tol
 
 
 def _fan(piece: np.ndarray) -> list[np.ndarray]:
-    """A convex polygon ``(m, 3)`` as ``(4, 3)`` quads and at most one triangle (c3 = c2)."""
+    """A convex polygon ``(m, 3)`` as convex ``(4, 3)`` quads, in its winding.
+
+    Fanned from corner 0 into quads; a triangle left over is cut into three quads at its
+    centroid and edge midpoints: the mesher gives a triangle of longest edge ``L``
+    ``⌈L / patch size⌉²`` patches, which for the long thin triangles a cut leaves behind is
+    many times their area's worth; its three quads get about a third of the count.
+    """
     out = []
     i = 1
     m = len(piece)
@@ -134,7 +139,10 @@ def _fan(piece: np.ndarray) -> list[np.ndarray]:
         out.append(piece[[0, i, i + 1, i + 2]])
         i += 2
     if i + 1 < m:
-        out.append(piece[[0, i, i + 1, i + 1]])
+        a, b, c = piece[0], piece[i], piece[i + 1]
+        g = (a + b + c) / 3.0
+        ab, bc, ca = 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)
+        out += [np.array([a, ab, g, ca]), np.array([b, bc, g, ab]), np.array([c, ca, g, bc])]
     return out
 
 
