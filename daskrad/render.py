@@ -363,6 +363,9 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
     lights, those are evaluated exactly at every pixel (``hard_lights``; their vertex part,
     recomputed here as the direct pass did, is taken out of what is interpolated), and the
     elements of eq. 9 are selected by the spread of the remaining direct part (area lights).
+    With the pass on and ``direct_context``, the vertices beside a junction also gather their
+    indirect light (:func:`_junction_gather`; ``ctx.vertex_radiance`` changes there, so a
+    context may come back changed even when no pixel needs more than Gouraud).
     Arrays a scene does not need are left ``None``: no hard light, no qualifying element, no
     ``Ks`` and no mirror give back the plain context, so the tile tasks do exactly the work of
     a Gouraud image.
