@@ -94,7 +94,8 @@ def _corners(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
 
 
 def build_hierarchy(scene: Scene, patch_size: float | None = None,
-                    element_size: float | None = None) -> Hierarchy:
+                    element_size: float | None = None, *, cut_contacts: bool = True
+                    ) -> Hierarchy:
     """Split every polygon into patches of edge ≤ ``patch_size`` and those into elements of
     edge ≤ ``element_size`` (scene units; ``None``: :func:`default_sizes`).
 
@@ -104,6 +105,10 @@ def build_hierarchy(scene: Scene, patch_size: float | None = None,
     edge ``L`` gets ``kp = ⌈L / patch_size⌉``, ``ke = ⌈L / kp / element_size⌉``, i.e. ``kp²``
     patches of ``ke²`` elements. Elements keep the polygon's winding; their normal is the
     polygon's (bit for bit), their centroid the area-weighted one.
+
+    ``cut_contacts``: first cut polygons along the lines where others stand on them
+    (:func:`daskrad.mesh.contacts.cut_at_contacts`); ``False`` meshes the input polygons as
+    they are (a patch may then straddle the foot of a block).
 
     Returns
     -------
@@ -119,8 +124,15 @@ def build_hierarchy(scene: Scene, patch_size: float | None = None,
 
     # polygons cut along the lines where others stand on them (issue 14); a piece keeps its
     # input polygon's normal bit for bit, so the pieces of a polygon stay exactly coplanar
-    scene, _, poly_normal = cut_at_contacts(scene)
+    if cut_contacts:
+        scene, _, poly_normal = cut_at_contacts(scene)
+    else:
+        poly_normal = None
     corners, is_quad = _corners(scene)
+    if poly_normal is None:
+        newell = _polygon_normals(corners, is_quad)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            poly_normal = newell / np.linalg.norm(newell, axis=1, keepdims=True)
     nq = len(corners)
     edge = np.linalg.norm(np.roll(corners, -1, axis=1) - corners, axis=2)  # (Q,4): c_i c_i+1
     # quads: u pieces from the longer of c0c1 / c3c2, v from c1c2 / c3c0; triangles: the
