@@ -95,8 +95,8 @@ class DirectContext(LightArrays):
     points, normals : (V, 3) float64
         The vertices and the unit normal of each one's polygon.
     area_points : (V, 3) float64
-        Where area lights are evaluated (:func:`vertex_points`: the vertex moved ``offset``
-        into its polygon).
+        Where area lights are evaluated and every shadow ray starts (:func:`vertex_points`:
+        the vertex moved :func:`vertex_nudge` into its polygon).
     offset : float
         Shadow-ray offset, ``RAY_OFFSET · diag`` (absolute length).
     point_position, ... emitter_area
@@ -141,6 +141,13 @@ class Lights(LightArrays):
                     or len(self.emitter_corners))
 
 
+def without_emitters(ctx: DirectContext) -> DirectContext:
+    """The direct-light context with no area light: point and directional lights only."""
+    return replace(ctx, emitter_corners=np.zeros((0, 4, 3)),
+                   emitter_count=np.zeros(0, np.int64), emitter_normal=np.zeros((0, 3)),
+                   emitter_radiance=np.zeros((0, 3)), emitter_area=np.zeros(0))
+
+
 def lights_of(ctx: DirectContext) -> Lights:
     """The :class:`Lights` of a direct-light context (the same lights the vertices saw)."""
     return Lights(*ctx.light_args, offset=float(ctx.offset), samples=int(ctx.samples))
@@ -163,8 +170,10 @@ def vertex_points(h: Hierarchy, nudge: float) -> np.ndarray:
     meets a wall sees that wall edge-on (form factor 0), while every point of the floor near
     the edge sees it fill half the hemisphere. A vertex value stands for the element around
     it, so it must be the limit from inside the polygon: the point is moved inside by a
-    length far below anything that changes the light elsewhere (``RAY_OFFSET · diag``). The
-    polygons are convex, so the centroid is inside and the move stays in the polygon.
+    length far below anything that changes the light elsewhere (:func:`vertex_nudge`,
+    ``VERTEX_NUDGE · diag``), yet 100 shadow-ray offsets, so that a surface through the vertex
+    (the ceiling above a wall's top edge) blocks the rays that would cross it. The polygons
+    are convex, so the centroid is inside and the move stays in the polygon.
     """
     ev = h.elem_verts
     used = ev >= 0
@@ -189,6 +198,11 @@ def scene_offset(h: Hierarchy) -> float:
     v = h.vertices[np.unique(used)] if len(used) else np.zeros((1, 3))
     diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
     return tolerances.RAY_OFFSET * (diag if diag > 0 else 1.0)
+
+
+def vertex_nudge(h: Hierarchy) -> float:
+    """How far a vertex is moved into its polygon, ``VERTEX_NUDGE · diag`` (100 ray offsets)."""
+    return scene_offset(h) * (tolerances.VERTEX_NUDGE / tolerances.RAY_OFFSET)
 
 
 def emitters(scene: Scene, h: Hierarchy) -> dict:
@@ -230,7 +244,7 @@ def make_context(scene: Scene, h: Hierarchy, grid: Grid, samples: int = AREA_SAM
     return DirectContext(
         grid=grid,
         points=np.ascontiguousarray(h.vertices, dtype=np.float64),
-        area_points=vertex_points(h, scene_offset(h)),
+        area_points=vertex_points(h, vertex_nudge(h)),
         normals=vertex_normals(h),
         offset=scene_offset(h),
         point_position=np.ascontiguousarray(pl.position, np.float64).reshape(-1, 3),
@@ -248,7 +262,7 @@ def make_context(scene: Scene, h: Hierarchy, grid: Grid, samples: int = AREA_SAM
 def with_hierarchy(ctx: DirectContext, h: Hierarchy) -> DirectContext:
     """The same lights and grid over a refined hierarchy's vertices (new generation)."""
     return replace(ctx, points=np.ascontiguousarray(h.vertices, dtype=np.float64),
-                   area_points=vertex_points(h, ctx.offset), normals=vertex_normals(h),
+                   area_points=vertex_points(h, vertex_nudge(h)), normals=vertex_normals(h),
                    generation=h.generation)
 
 
@@ -441,9 +455,7 @@ def light(scene: Scene, mesh: Mesh, settings: Settings, executor=None) -> Direct
                            emitters_shot=True)
     ctx = make_context(scene, h, mesh.grid, settings.area_samples, method=settings.area_method)
     if not settings.two_pass:  # emitters are shot: gather point and directional lights only
-        ctx = replace(ctx, emitter_corners=np.zeros((0, 4, 3)),
-                      emitter_count=np.zeros(0, np.int64), emitter_normal=np.zeros((0, 3)),
-                      emitter_radiance=np.zeros((0, 3)), emitter_area=np.zeros(0))
+        ctx = without_emitters(ctx)
     H = compute(ctx, 0, len(h.vertices), executor)
     diffuse = scene.materials.diffuse
 

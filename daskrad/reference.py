@@ -18,7 +18,7 @@ from daskrad.scene.corners import split_quads
 from daskrad.scene.types import Camera, Scene
 
 
-def _triangles(scene: Scene):
+def scene_triangles(scene: Scene):
     """The scene's polygons as triangles: ``(T, 3, 3)`` corners and ``(T,)`` polygon ids."""
     tris, owner = split_quads(scene.polygons)
     return scene.vertices[tris], owner
@@ -28,7 +28,7 @@ def path_trace(scene: Scene, camera: Camera | None = None, spp: int = 64,
                max_bounces: int = 64, seed: int = 1) -> np.ndarray:
     """``(H, W, 3) float64`` radiance of ``scene`` seen by ``camera`` (default: the scene's)."""
     camera = camera or scene.camera or render.default_camera(scene.bounds)
-    tris, owner = _triangles(scene)
+    tris, owner = scene_triangles(scene)
     grid = build_grid(tris)
     e1, e2 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
     cross = np.cross(e1, e2)

@@ -75,6 +75,17 @@ class RenderContext:
         Mirror bounces followed per pixel ray.
     offset : float
         Ray offset off a mirror (an absolute length, ``RAY_OFFSET · diag``).
+
+    Hard lights at every pixel (issue 14), optional:
+
+    hard_lights : daskrad.direct.Lights
+        The point and directional lights alone. Their direct light is one shadow ray per light
+        and hit, so every hit (off the ``elem_perpixel`` elements, which recompute all lights)
+        gets it exactly: a shadow edge crossing an element whose corners all agree, or a
+        corner in shadow or under another surface, is then drawn where it lies.
+    vertex_soft : (V, 3) float64
+        ``vertex_radiance`` without the hard lights' direct radiance ``ρ H_hard / π``: what is
+        interpolated under the exact hard light.
     """
 
     grid: Grid
@@ -102,6 +113,8 @@ class RenderContext:
     # occluders their direct light is evaluated with; None: every hit traces its rays
     elem_unshadowed: np.ndarray | None = None
     open_grid: Grid | None = None
+    hard_lights: Lights | None = None
+    vertex_soft: np.ndarray | None = None
 
     @property
     def extras(self) -> bool:
@@ -109,7 +122,8 @@ class RenderContext:
         return bool(self.lights is not None and self.elem_perpixel is not None
                     and (self.elem_perpixel.any() or self.elem_specular.any())
                     or (self.elem_mirror is not None and self.mirror_depth > 0
-                        and self.elem_mirror.any()))
+                        and self.elem_mirror.any())
+                    or self.hard_lights is not None)
 
 
 def default_camera(bounds: np.ndarray, width: int = 256, height: int = 256,
@@ -244,10 +258,11 @@ def render_tile(ctx: RenderContext, rows: slice, cols: slice) -> np.ndarray:
 def render_tile_stats(ctx: RenderContext, rows: slice, cols: slice
                       ) -> tuple[np.ndarray, dict]:
     """:func:`render_tile` and what the per-pixel pass did: ``{"perpixel": samples whose
-    direct light was recomputed, "specular": samples given a Phong term, "mirror": mirror
-    rays traced}`` (all 0 when the context asks for nothing beyond Gouraud)."""
+    direct light was recomputed, "hard": samples given exact point and directional light
+    (the others), "specular": samples given a Phong term, "mirror": mirror rays traced}`` (all
+    0 when the context asks for nothing beyond Gouraud)."""
     o, d = primary_rays(ctx.camera, rows, cols, ctx.spp)
-    stats = {"perpixel": 0, "specular": 0, "mirror": 0}
+    stats = {"perpixel": 0, "hard": 0, "specular": 0, "mirror": 0}
     if ctx.extras:
         seeds = sample_ids(ctx.camera, rows, cols, ctx.spp)
         L = _radiance(ctx, o, d, seeds, 0, stats)
@@ -262,6 +277,8 @@ def _radiance(ctx: RenderContext, o: np.ndarray, d: np.ndarray, seeds: np.ndarra
     """Radiance along rays with the per-pixel pass, Phong highlights and mirrors.
 
     Every hit first gets the Gouraud value of :func:`shade` (bit for bit); then
+    - with ``hard_lights``, on every other element the point and directional lights' part is
+      replaced by its exact value at the hit: ``L = interp(vertex_soft) + ρ H_hard(p) / π``;
     - on an element of ``elem_perpixel`` (eq. 9) the direct part is replaced by its exact
       value at the hit: ``L = interp(vertex_indirect) + Ke + ρ H(p) / π``;
     - on a material with ``Ks`` (not a mirror) the Phong radiance of every light is added;
@@ -276,6 +293,21 @@ def _radiance(ctx: RenderContext, o: np.ndarray, d: np.ndarray, seeds: np.ndarra
     tri_f = tri[idx]
     elem = ctx.tri_element[tri_f]
     lights = ctx.lights
+    hard = ctx.hard_lights
+    if hard is not None:
+        sel = ~ctx.elem_perpixel[elem] & (ctx.elem_reflectance[elem] > 0).any(axis=1)
+        if sel.any():
+            a = idx[sel]
+            e = elem[sel]
+            p = o[a] + t[a, None] * d[a]
+            H, _ = direct_at_hits(
+                ctx.grid, np.ascontiguousarray(p), np.ascontiguousarray(ctx.elem_normal[e]),
+                np.ascontiguousarray(-d[a]), np.ascontiguousarray(seeds[a]),
+                np.zeros((len(a), 3)), np.zeros(len(a)), float(hard.offset), *hard.light_args,
+                int(hard.samples))
+            L[a] = (_gouraud(ctx.vertex_soft, ctx.tri_verts[tri[a]], u[a], v[a])
+                    + ctx.elem_reflectance[e] * H / math.pi)
+            stats["hard"] += int(sel.sum())
     if lights is not None and ctx.elem_perpixel is not None:
         mirror = ctx.elem_mirror[elem] if ctx.elem_mirror is not None else False
         pp = ctx.elem_perpixel[elem]
@@ -355,27 +387,50 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
                      elem_emission: np.ndarray, elem_specular: np.ndarray,
                      elem_shininess: np.ndarray, elem_mirror: np.ndarray,
                      lights: Lights | None, rdiff: float | None, mirror_depth: int,
-                     diagonal: float) -> RenderContext:
+                     diagonal: float, direct_context=None, tvertices=None) -> RenderContext:
     """``ctx`` with the per-pixel pass and specular light switched on where they apply.
 
     ``elem_verts (E, 4) int`` are the elements' corners; ``vertex_direct (V, 3)`` is the
-    direct part of ``ctx.vertex_radiance`` (radiance), whose spread selects the elements of
-    eq. 9; ``rdiff`` ``None`` switches the pass off. Arrays a
-    scene does not need are left ``None``: no qualifying element, no ``Ks`` and no mirror give
-    back the plain context, so the tile tasks do exactly the work of a Gouraud image.
+    direct part of ``ctx.vertex_radiance`` (radiance); ``rdiff`` ``None`` switches the pass
+    off. With the pass on and ``direct_context`` (the :class:`daskrad.direct.DirectContext`
+    the vertices were lit with; ``tvertices`` its T-vertices) holding point or directional
+    lights, those are evaluated exactly at every pixel (``hard_lights``; their vertex part,
+    recomputed here as the direct pass did, is taken out of what is interpolated), and the
+    elements of eq. 9 are selected by the spread of the remaining direct part (area lights).
+    With the pass on and ``direct_context``, the vertices beside a junction also gather their
+    indirect light (:func:`_junction_gather`; ``ctx.vertex_radiance`` changes there, so a
+    context may come back changed even when no pixel needs more than Gouraud).
+    Arrays a scene does not need are left ``None``: no hard light, no qualifying element, no
+    ``Ks`` and no mirror give back the plain context, so the tile tasks do exactly the work of
+    a Gouraud image.
     """
     if lights is not None and lights.empty:
         lights = None
-    pp = (perpixel_elements(elem_verts, vertex_direct, ctx.vertex_radiance, rdiff)
+    if rdiff is not None and direct_context is not None:
+        # indirect light gathered at vertices beside a junction, where element averages miss
+        # the near field (the foot of a block's face on a lit floor)
+        delta = _junction_gather(ctx, direct_context, tvertices, elem_verts, elem_reflectance,
+                                 elem_emission, vertex_indirect, diagonal)
+        ctx = replace(ctx, vertex_radiance=ctx.vertex_radiance + delta)
+        vertex_indirect = vertex_indirect + delta
+    hard, vertex_hard = None, None
+    if rdiff is not None and lights is not None and direct_context is not None:
+        hard, vertex_hard = _hard_part(direct_context, tvertices, elem_verts, elem_reflectance,
+                                       lights)
+    soft_direct = vertex_direct if vertex_hard is None else vertex_direct - vertex_hard
+    pp = (perpixel_elements(elem_verts, soft_direct, ctx.vertex_radiance, rdiff)
           if rdiff is not None and lights is not None else None)
     spec = np.ascontiguousarray(elem_specular, dtype=np.float64)
     mirror = np.asarray(elem_mirror, bool)
     has_pp = pp is not None and pp.any()
     has_spec = lights is not None and bool((spec[~mirror] > 0).any())
     has_mirror = mirror_depth > 0 and bool(mirror.any())
-    if not (has_pp or has_spec or has_mirror):
+    if not (has_pp or has_spec or has_mirror or hard is not None):
         return ctx
     E = len(elem_reflectance)
+    if hard is not None:
+        ctx = replace(ctx, hard_lights=hard, vertex_soft=np.ascontiguousarray(
+            ctx.vertex_radiance - vertex_hard))
     return replace(
         ctx,
         vertex_indirect=np.ascontiguousarray(vertex_indirect, dtype=np.float64),
@@ -422,7 +477,9 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
         lights=(direct.lights_of(light.context)
                 if light.irradiance is not None and light.context is not None else None),
         rdiff=settings.rdiff if settings.per_pixel else None,
-        mirror_depth=settings.mirror_depth, diagonal=scene.diagonal)
+        mirror_depth=settings.mirror_depth, diagonal=scene.diagonal,
+        direct_context=light.context if light.irradiance is not None else None,
+        tvertices=light.tvertices)
     return with_unshadowed(ctx, h)
 
 
@@ -529,3 +586,73 @@ def pixels(ctx: RenderContext, executor=None) -> np.ndarray:
     for (rows, cols), tile in zip(parts, done, strict=True):
         out[rows, cols] = tile
     return out
+
+
+def _hard_part(dctx, tvertices, elem_verts: np.ndarray, elem_reflectance: np.ndarray,
+               lights: Lights):
+    """``(Lights, (V, 3))``: the point and directional lights of ``lights`` and their direct
+    radiance ``ρ H / π`` at the vertices of ``dctx``, T-vertices resolved as the renderer's
+    vertex radiance is; ``(None, None)`` without such lights. The vertex values are computed
+    by the direct pass's own function over the same points, so they are the hard part of the
+    vertex irradiance to round-off."""
+    from daskrad import direct
+    from daskrad.mesh.refine import TVertices, resolve_tvertices
+
+    if not (len(lights.point_position) or len(lights.dir_direction)):
+        return None, None
+    bare = direct.without_emitters(dctx)
+    H = direct.compute(bare, 0, len(dctx.points))
+    used = elem_verts >= 0
+    owner = np.broadcast_to(np.arange(len(elem_verts))[:, None], elem_verts.shape)[used]
+    rho = np.zeros((len(H), 3))
+    rho[elem_verts[used]] = elem_reflectance[owner]
+    tv = tvertices if tvertices is not None else TVertices.empty()
+    vertex_hard = resolve_tvertices(rho * H, tv) / math.pi
+    return direct.lights_of(bare), vertex_hard
+
+
+#: A vertex is beside a junction when another surface lies within ``JUNCTION_REACH · diag`` in
+#: its hemisphere (one of 4 × 4 probe rays); its indirect light is then gathered over
+#: ``GATHER_SIDE²`` stratified rays.
+JUNCTION_REACH = 0.02
+GATHER_SIDE = 32
+
+
+def _junction_gather(ctx: RenderContext, dctx, tvertices, elem_verts: np.ndarray,
+                     elem_reflectance: np.ndarray, elem_emission: np.ndarray,
+                     vertex_indirect: np.ndarray, diagonal: float) -> np.ndarray:
+    """``(V, 3)``: the change of vertex radiance when the indirect light of the vertices
+    beside a junction is gathered (:mod:`daskrad.kernels.gather`) instead of averaged from
+    their elements: ``ρ · mean(L)`` over cosine-distributed rays from the vertex, ``L`` the
+    radiance the solution shows (Gouraud of ``ctx.vertex_radiance``) less the emitters'
+    ``Ke`` when the direct pass lit the vertices with them (two-pass), minus the vertex's
+    current indirect radiance. T-vertices keep their resolved values (no seam)."""
+    from daskrad.kernels.gather import gather_radiance, near_surface
+
+    V = len(ctx.vertex_radiance)
+    delta = np.zeros((V, 3))
+    pts = np.ascontiguousarray(dctx.area_points)
+    nrm = np.ascontiguousarray(dctx.normals)
+    used = np.zeros(V, bool)
+    used[elem_verts[elem_verts >= 0]] = True
+    if tvertices is not None and len(tvertices.vertex):
+        used[tvertices.vertex] = False
+    cand = np.flatnonzero(used)
+    if len(cand) == 0:
+        return delta
+    off = float(dctx.offset)
+    near = near_surface(ctx.grid, pts[cand], nrm[cand], off, JUNCTION_REACH * diagonal, 4)
+    idx = cand[near]
+    if len(idx) == 0:
+        return delta
+    exclude = (np.ascontiguousarray(elem_emission, dtype=np.float64)
+               if len(dctx.emitter_corners) else np.zeros((len(elem_reflectance), 3)))
+    L = gather_radiance(ctx.grid, ctx.tri_verts, ctx.tri_element, ctx.elem_normal,
+                        np.ascontiguousarray(ctx.vertex_radiance), exclude,
+                        np.ascontiguousarray(pts[idx]), np.ascontiguousarray(nrm[idx]),
+                        idx.astype(np.int64), off, GATHER_SIDE)
+    owner = np.broadcast_to(np.arange(len(elem_verts))[:, None], elem_verts.shape)
+    rho = np.zeros((V, 3))
+    rho[elem_verts[elem_verts >= 0]] = elem_reflectance[owner[elem_verts >= 0]]
+    delta[idx] = rho[idx] * L - vertex_indirect[idx]
+    return delta

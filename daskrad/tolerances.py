@@ -31,6 +31,13 @@ PLANAR_QUAD = 1e-9
 #: Shadow and secondary rays start ``RAY_OFFSET * diag`` off the surface along its normal.
 RAY_OFFSET = 1e-7
 
+#: A vertex's direct light is the limit from inside its polygon: it is evaluated (and its shadow
+#: rays start) ``VERTEX_NUDGE * diag`` from the vertex towards the polygon's centroid. 100 ray
+#: offsets: a surface meeting the polygon at the vertex (a junction) then lies farther than the
+#: offset from the ray's origin and blocks what would cross it, and the point moves by a
+#: hundred-thousandth of the scene, which no light gradient resolves.
+VERTEX_NUDGE = 1e-5
+
 #: Relative tolerance with which area sums are checked at every level of the hierarchy.
 AREA_SUM_RTOL = 1e-9
 
@@ -120,3 +127,10 @@ MIN_DIAGONAL = 1e-60
 #: ``diag² ≤ 1.2e151`` (the unshot RMS) it stays below 1e212. No real scene comes near it: the
 #: sun's exitance is 6e7 W/m².
 MAX_LIGHT = 1e30
+
+#: An edge of one polygon lies on another polygon's plane (a contact line, where a block stands
+#: on the floor) when both its ends are within ``CONTACT * diag`` of that plane: the polygon is
+#: then cut along it before meshing (:mod:`daskrad.mesh.contacts`). Looser than ``COPLANAR``:
+#: a modelled block rests on the floor to the modeller's precision, not to round-off, and a
+#: gap of a millionth of the scene lets no visible light through.
+CONTACT = 1e-6

@@ -20,8 +20,9 @@ from daskrad.scene.corners import real_corners
 from daskrad.testing import stress as sc
 
 
-def _context(scene, patch=0.25, element=0.125, method="hemisphere", resolution=64):
-    h = build_hierarchy(scene, patch, element)
+def _context(scene, patch=0.25, element=0.125, method="hemisphere", resolution=64,
+             cut_contacts=True):
+    h = build_hierarchy(scene, patch, element, cut_contacts=cut_contacts)
     return h, shooting.make_context(h, method, resolution)
 
 
@@ -188,7 +189,10 @@ def test_points_under_a_block_standing_on_the_shooter_are_dropped():
              [12, 13, 14, 15]]
     scene = scene_from_arrays(np.array(v, float), np.array(polys), np.zeros(7, int),
                               [[0.5] * 3], [[1.0] * 3])
-    h, ctx = _context(scene, patch=1.0, element=0.25)
+    # the floor uncut: by default it is cut along the block's feet (issue 14) and no patch
+    # straddles it, but a block standing just above the floor (beyond tolerances.CONTACT) is
+    # not cut along and the drop must still work
+    h, ctx = _context(scene, patch=1.0, element=0.25, cut_contacts=False)
     floor = int(np.flatnonzero(h.patch_polygon == 0)[0])
     corners = h.vertices[real_corners(h.patch_verts[floor])]
     bary = shooting.SHOOTER_POINTS

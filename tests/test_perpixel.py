@@ -37,7 +37,7 @@ def _render(ctx, tile=render.TILE):
     count = 0
     for rows, cols in render.tiles(cam.width, cam.height, tile):
         image[rows, cols], stats = render.render_tile_stats(ctx, rows, cols)
-        count += stats["perpixel"]
+        count += stats["perpixel"] + stats["hard"]  # hard: point/directional light at a hit
     return image, count
 
 
@@ -94,11 +94,24 @@ def test_point_light_shadow_is_sharp_to_within_a_pixel():
     assert (wrong0 & ~_near_edge(cls)).sum() > 20
 
 
+def _area_scene(size=40):
+    """A floor (ρ 0.5) under a small square emitter facing down, nothing in between."""
+    v = np.array([[-1, 0, -1], [-1, 0, 1], [1, 0, 1], [1, 0, -1],
+                  [-0.2, 0.6, -0.2], [0.2, 0.6, -0.2], [0.2, 0.6, 0.2], [-0.2, 0.6, 0.2]])
+    cam = Camera(eye=np.array([0.0, 3.0, 0.05]), look_at=np.zeros(3),
+                 up=np.array([0.0, 0.0, 1.0]), fov=40.0, width=size, height=size)
+    return scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7]]), [0, 1],
+                             diffuse=[[RHO] * 3, [0.0] * 3], emission=[[0] * 3, [2.0] * 3],
+                             camera=cam)
+
+
 def test_no_qualifying_element_costs_nothing_and_changes_no_bit():
-    scene = _blocker_scene(32)
-    plain, _ = _render(render_context(scene, per_pixel=False)[0])
+    # (area lights only: point and directional light is recomputed at every hit, test_shadows)
+    scene = _area_scene(32)
+    kw = dict(patch_size=2.0, element_size=0.5, subdivide=0.0)
+    plain, _ = _render(render_context(scene, per_pixel=False, **kw)[0])
     # a threshold no element reaches: the plain context comes back, no pixel is recomputed
-    ctx, _ = render_context(scene, rdiff=1e9)
+    ctx, _ = render_context(scene, rdiff=1e9, **kw)
     assert ctx.elem_perpixel is None and ctx.lights is None and not ctx.extras
     image, count = _render(ctx)
     assert count == 0
@@ -107,9 +120,11 @@ def test_no_qualifying_element_costs_nothing_and_changes_no_bit():
 
 def test_pass_changes_only_pixels_of_qualifying_elements():
     # the per-pixel path itself leaves every pixel of a non-qualifying element bit-identical
-    scene = _blocker_scene(32)
-    plain, _ = _render(render_context(scene, per_pixel=False)[0])
-    ctx, _ = render_context(scene, rdiff=0.05)
+    # (area lights: the elements of eq. 9 are chosen by the spread of their direct light)
+    scene = _area_scene(32)
+    kw = dict(patch_size=2.0, element_size=0.5, subdivide=0.0)
+    plain, _ = _render(render_context(scene, per_pixel=False, **kw)[0])
+    ctx, _ = render_context(scene, rdiff=0.01, **kw)
     image, count = _render(ctx)
     o, d = render.primary_rays(ctx.camera, slice(0, 32), slice(0, 32), 1)
     from daskrad.kernels.grid import closest_hit
@@ -126,13 +141,8 @@ def test_pass_changes_only_pixels_of_qualifying_elements():
 def test_area_light_per_pixel_is_exact_unoccluded_and_tile_independent():
     # A floor under a small emitter, nothing in between: the visible fraction is exactly 1, so
     # every floor pixel of a qualifying element is ρ L F(p) (Lambert's formula at the hit).
-    v = np.array([[-1, 0, -1], [-1, 0, 1], [1, 0, 1], [1, 0, -1],
-                  [-0.2, 0.6, -0.2], [0.2, 0.6, -0.2], [0.2, 0.6, 0.2], [-0.2, 0.6, 0.2]])
-    cam = Camera(eye=np.array([0.0, 3.0, 0.05]), look_at=np.zeros(3),
-                 up=np.array([0.0, 0.0, 1.0]), fov=40.0, width=40, height=40)
-    scene = scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7]]), [0, 1],
-                              diffuse=[[RHO] * 3, [0.0] * 3], emission=[[0] * 3, [2.0] * 3],
-                              camera=cam)
+    scene = _area_scene()
+    v, cam = scene.vertices, scene.camera
     ctx, h = render_context(scene, patch_size=2.0, element_size=0.5, rdiff=0.01, subdivide=0.0)
     image, count = _render(ctx)
     assert count > 0

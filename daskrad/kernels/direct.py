@@ -17,8 +17,11 @@ call it, so a vertex and a pixel at the same place get the same light.
 
 Shadow rays start ``off`` (an absolute length, ``RAY_OFFSET · diag``) above the surface along
 its normal and ignore hits within ``off`` of that origin and of the light, so a surface never
-shadows itself (no acne) and a wall meeting the floor at a vertex does not shadow it, while
-anything farther than ``off`` blocks (no leak through touching geometry).
+shadows itself (no acne), while anything farther than ``off`` blocks. A vertex's rays start
+from its point moved ``VERTEX_NUDGE · diag`` (100 offsets) into its polygon
+(:func:`daskrad.direct.vertex_points`): a surface meeting the polygon at the vertex (the
+ceiling over a wall's top edge) is then met beyond ``off`` and blocks the light that would
+have to cross it (issue 14: no light through a closed surface).
 
 Sample positions inside the strata are jittered by a hash of ``(seed, sample)``: the result
 depends only on the point's seed (its vertex id, or its pixel sample id), never on batching or
@@ -76,9 +79,9 @@ def irradiance_one(grid, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
     p, n : (3,) float64
         The point and its unit normal (the lit side).
     pa : (3,) float64
-        Where area lights are evaluated: ``p`` itself, or for a vertex on a polygon's boundary
-        ``p`` moved a hair into the polygon (the limit from inside; point and directional
-        light are continuous there and use ``p``).
+        Where area lights are evaluated and every shadow ray starts (offset ``off`` along
+        ``n``): ``p`` itself, or for a vertex on a polygon's boundary ``p`` moved a hair into
+        the polygon (the limit from inside). Point lights' ``cos θ / r²`` is taken at ``p``.
     off : float
         Shadow-ray offset, an absolute length.
     seed : int
@@ -102,9 +105,12 @@ def irradiance_one(grid, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
     """
     spec = ks[0] > 0.0 or ks[1] > 0.0 or ks[2] > 0.0
     norm_spec = (ns + 2.0) / (2.0 * np.pi)
-    ox = p[0] + off * n[0]
-    oy = p[1] + off * n[1]
-    oz = p[2] + off * n[2]
+    # shadow rays of every light leave from pa: for a vertex on a junction (a wall's top edge
+    # under the ceiling) a surface through the vertex is then met beyond the offset and
+    # blocks, instead of letting light through the closed surface
+    ox = pa[0] + off * n[0]
+    oy = pa[1] + off * n[1]
+    oz = pa[2] + off * n[2]
     o = np.empty(3)
     o[0] = ox
     o[1] = oy
@@ -152,12 +158,6 @@ def irradiance_one(grid, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
     if em_corners.shape[0] == 0:
         return
     p = pa
-    ox = p[0] + off * n[0]
-    oy = p[1] + off * n[1]
-    oz = p[2] + off * n[2]
-    o[0] = ox
-    o[1] = oy
-    o[2] = oz
     ss = samples * samples
     inv_s = 1.0 / samples
     for m in range(em_corners.shape[0]):

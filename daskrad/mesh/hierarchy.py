@@ -1,6 +1,8 @@
 """Step 1 of the pipeline: input polygons → patches → elements (docs/design.md §1, §3).
 
-Every input polygon (a planar convex quad or a triangle) is cut into one uniform lattice of
+Input polygons are first cut along their contact lines, where another polygon stands on them
+(:mod:`daskrad.mesh.contacts`); the hierarchy's polygons are those pieces.
+Every polygon (a planar convex quad or a triangle) is cut into one uniform lattice of
 elements; patches are blocks of that lattice. Quads become bilinear ``n × m`` grids of quads,
 triangles ``k²`` similar triangles. Vertices are shared by all elements and patches of one
 polygon (continuous Gouraud interpolation, no T-vertex inside a polygon) and never between two
@@ -22,6 +24,7 @@ import numpy as np
 from daskrad import tolerances
 from daskrad.errors import OptionError, SceneError
 from daskrad.kernels.subdivide import subdivide_quads, subdivide_triangles
+from daskrad.mesh.contacts import cut_at_contacts
 from daskrad.mesh.types import Hierarchy
 from daskrad.scene.corners import is_quad as quad_mask
 from daskrad.scene.corners import repeat_third, split_quads
@@ -123,7 +126,8 @@ def one_sided(scene: Scene) -> Scene:
 
 
 def build_hierarchy(scene: Scene, patch_size: float | None = None,
-                    element_size: float | None = None) -> Hierarchy:
+                    element_size: float | None = None, *, cut_contacts: bool = True
+                    ) -> Hierarchy:
     """Split every polygon into patches of edge ≤ ``patch_size`` and those into elements of
     edge ≤ ``element_size`` (scene units; ``None``: :func:`default_sizes`).
 
@@ -136,6 +140,9 @@ def build_hierarchy(scene: Scene, patch_size: float | None = None,
 
     Two-sided polygons are meshed as two one-sided ones (:func:`one_sided`): the hierarchy's
     polygons are the scene's followed by the backs.
+    ``cut_contacts``: first cut polygons along the lines where others stand on them
+    (:func:`daskrad.mesh.contacts.cut_at_contacts`); ``False`` meshes the input polygons as
+    they are (a patch may then straddle the foot of a block).
 
     Returns
     -------
@@ -150,7 +157,17 @@ def build_hierarchy(scene: Scene, patch_size: float | None = None,
     patch_size = _check_size("patch size", patch_size)
     element_size = _check_size("element size", element_size)
 
+    # polygons cut along the lines where others stand on them (issue 14); a piece keeps its
+    # input polygon's normal bit for bit, so the pieces of a polygon stay exactly coplanar
+    if cut_contacts:
+        scene, _, poly_normal = cut_at_contacts(scene)
+    else:
+        poly_normal = None
     corners, is_quad = _corners(scene)
+    if poly_normal is None:
+        newell = _polygon_normals(corners, is_quad)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            poly_normal = newell / np.linalg.norm(newell, axis=1, keepdims=True)
     nq = len(corners)
     edge = np.linalg.norm(np.roll(corners, -1, axis=1) - corners, axis=2)  # (Q,4): c_i c_i+1
     # quads: u pieces from the longer of c0c1 / c3c2, v from c1c2 / c3c0; triangles: the
@@ -194,10 +211,6 @@ def build_hierarchy(scene: Scene, patch_size: float | None = None,
                             vertices, elem_verts, elem_patch, patch_verts)
 
     patch_polygon = np.repeat(np.arange(nq, dtype=np.int32), n_patch)
-    newell = _polygon_normals(corners, is_quad)
-    length = np.linalg.norm(newell, axis=1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        poly_normal = newell / length
     elem_polygon = patch_polygon[elem_patch]
     elem_normal = poly_normal[elem_polygon]
     elem_area, elem_centroid = _areas_centroids(vertices, elem_verts, elem_normal)
