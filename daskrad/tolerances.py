@@ -51,6 +51,17 @@ COPLANAR = 1e-9
 #: the item buffer's tie-break (lower index) made it lose whole pixels (furnace error 9.4 %).
 SUBPIXEL_AREA_PX = 1.0
 
+#: Quadrics and parametric surfaces (``[[shape]]`` in the sidecar, MGF's ``sph``, ``cyl``,
+#: ``cone``, ``ring``, ``torus``) are tessellated so that no point of the true surface is
+#: farther than ``CHORD_ERROR * diag`` from its facet (:mod:`daskrad.scene.shapes`): a
+#: millimetre in a 1 m scene, a centimetre in a 10 m room.
+CHORD_ERROR = 1e-3
+
+#: MGF's two-sided faces become the face plus a reversed twin this far behind it
+#: (``* diag``), as the shared scenes' converted OBJs do: far enough apart that the item
+#: buffer and shadow rays (``RAY_OFFSET``) tell the two apart, far below anything visible.
+TWIN_OFFSET = 1e-5
+
 #: Two coordinates closer than this, relative to the points' magnitudes, tie when the raster
 #: orders an edge's endpoints (:func:`daskrad.kernels.geometry.lex_less`: round-off must not
 #: decide which end the polyline starts from). Defined beside the kernel, which imports
