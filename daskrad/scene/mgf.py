@@ -54,6 +54,11 @@ from daskrad.errors import SceneError
 from daskrad.scene import shapes as shp
 from daskrad.scene.polygons import faces_to_polygons
 
+#: A reflectance whose RGB reaches 1 (``rd 1``, or a colour brighter in one channel than its
+#: luminance) is scaled down to this largest channel: daskrad needs ``Kd < 1`` (a closed
+#: scene would never converge), and the shared scenes' converted OBJs did the same.
+MAX_REFLECTANCE = 0.999
+
 #: Luminous efficacy of equal-energy white light, lm/W (RenderPark's ``WHITE_EFFICACY``).
 WHITE_EFFICACY = 183.07
 
@@ -459,7 +464,13 @@ class _Reader:
         rho = self._one(args, "rd")
         if not 0 <= rho <= 1:
             self.err(f"rd {rho} is outside [0, 1]")
-        self.material.kd = tuple((rho * xy_to_rgb(self.color.cx, self.color.cy)).tolist())
+        kd = rho * xy_to_rgb(self.color.cx, self.color.cy)
+        if kd.max() >= 1.0:
+            kd *= MAX_REFLECTANCE / kd.max()
+            self.material.dropped.add("rd>=1")
+        else:
+            self.material.dropped.discard("rd>=1")
+        self.material.kd = tuple(kd.tolist())
 
     def e_ed(self, args):
         e = self._one(args, "ed")
@@ -730,9 +741,14 @@ def read_mgf(path: str | Path, one_sided: bool = False) -> MgfData:
     vertices, polygons, material, face, n_twins = _twins(vertices, polygons, material, face,
                                                          two_sided, diag)
     used = np.unique(material)
-    dropped = sorted({k for r in used for k in table[r][4]})
+    clamped = [table[r][0] for r in used if "rd>=1" in table[r][4]]
+    if clamped:
+        warnings.warn(f"{path}: diffuse reflectance of {len(clamped)} materials reaches 1 in "
+                      f"a channel (first: {clamped[0]!r}): scaled down to "
+                      f"{MAX_REFLECTANCE}", stacklevel=2)
+    dropped = sorted({k for r in used for k in table[r][4] if k != "rd>=1"})
     if dropped:
-        n = sum(1 for r in used if table[r][4])
+        n = sum(1 for r in used if table[r][4] - {"rd>=1"})
         warnings.warn(f"{path}: {', '.join(dropped)} (specular/transmission) of {n} materials "
                       "ignored: daskrad's surfaces are diffuse", stacklevel=2)
     return MgfData(
