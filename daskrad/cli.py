@@ -55,6 +55,9 @@ def _area_method(text: str) -> str:
     return text
 
 
+_SCENE_HELP = "OBJ (with MTL), MGF, PLY, STL, glTF or GLB file, or a TOML of [[shape]]s"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="daskrad",
@@ -65,13 +68,13 @@ def build_parser() -> argparse.ArgumentParser:
     commands.required = True
 
     info = commands.add_parser("info", help="load a scene and report its hierarchy and grid")
-    info.add_argument("scene", help="OBJ (with MTL), PLY, STL, glTF or GLB file")
+    info.add_argument("scene", help=_SCENE_HELP)
     info.add_argument("--config", help="TOML sidecar (default: SCENE with .toml suffix, if any)")
     info.add_argument("--patch-size", type=_positive_float, help="max patch edge, scene units")
     info.add_argument("--element-size", type=_positive_float, help="max element edge")
 
     run = commands.add_parser("run", help="solve and render a scene")
-    run.add_argument("scene", help="OBJ (with MTL), PLY, STL, glTF or GLB file")
+    run.add_argument("scene", help=_SCENE_HELP)
     run.add_argument("-o", "--output", help="output image OUT.exr (default: SCENE stem + .exr)")
     run.add_argument("--config", help="TOML sidecar (default: SCENE with .toml suffix, if any)")
     where = run.add_mutually_exclusive_group()
