@@ -297,7 +297,7 @@ def _executor(settings: Settings, store=None):
 
 
 def _camera(scene, settings: Settings):
-    cam = scene.camera or render.default_camera(scene.bounds)
+    cam = scene.camera or render.default_camera(scene.bounds, inside=render.faces_inward(scene))
     return dataclasses.replace(cam, width=settings.width or cam.width,
                                height=settings.height or cam.height)
 
