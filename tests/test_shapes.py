@@ -379,3 +379,12 @@ def test_sphere_form_factor_from_a_point_hemisphere(d):
 def test_sphere_of_subpixel_facets_form_factor_hemisphere():
     hemi, lambert, bound = _hemisphere_case(8.0, 1e-3, 256)
     assert abs(hemi - lambert) <= bound
+
+
+def test_toml_scene_with_another_config_is_refused(tmp_path):
+    path = tmp_path / "room.toml"
+    path.write_text(SPHERE_ROOM.format(rho=0.5, ke=1.0))
+    (tmp_path / "cam.toml").write_text("")
+    with pytest.raises(SceneError, match="its own config"):
+        load_scene(path, tmp_path / "cam.toml")
+    assert len(load_scene(path, path).polygons) == len(load_scene(path).polygons)

@@ -63,10 +63,13 @@ def load_scene(path: str | Path, config: str | Path | None = None) -> Scene:
     if not os.access(path, os.R_OK):
         raise SceneError("cannot read the file (permission denied)", path)
 
-    if config is not None:
-        cfg = read_config(config)
-    elif suffix == ".toml":
+    if suffix == ".toml":
+        if config is not None and Path(config).resolve() != path.resolve():
+            raise SceneError("a TOML scene is its own config: give its camera and lights in "
+                             "it, not with --config", path)
         cfg = read_config(path)
+    elif config is not None:
+        cfg = read_config(config)
     else:
         found = sidecar(path)
         cfg = read_config(found) if found is not None else None
