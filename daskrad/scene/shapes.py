@@ -447,7 +447,3 @@ def _merge(parts):
         offset += len(v)
     return np.concatenate(verts), np.concatenate(polys)
 
-
-def merge(parts):
-    """Public form of :func:`_merge`: one ``(vertices, polygons)`` from several."""
-    return _merge(parts)
