@@ -54,6 +54,9 @@ def _finite_float(text: str) -> float:
     return value
 
 
+_SCENE_HELP = "OBJ (with MTL), MGF, PLY, STL, glTF or GLB file, or a TOML of [[shape]]s"
+
+
 def _vec3(text: str) -> tuple[float, float, float]:
     parts = text.split(",")
     try:
@@ -95,7 +98,7 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     area_methods = f"one of: {_choices('area')} " if help_choices else ""
 
     info = commands.add_parser("info", help="load a scene and report its hierarchy and grid")
-    info.add_argument("scene", help="OBJ (with MTL), PLY, STL, glTF or GLB file")
+    info.add_argument("scene", help=_SCENE_HELP)
     info.add_argument("--config", help="TOML sidecar (default: SCENE with .toml suffix, if any)")
     info.add_argument("--camera", metavar="NAME", help="glTF: the camera to look through "
                                                        "(default: the file's first)")
@@ -108,7 +111,7 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
                                        "(make install does it; a run compiles them otherwise)")
 
     run = commands.add_parser("run", help="solve and render a scene")
-    run.add_argument("scene", help="OBJ (with MTL), PLY, STL, glTF or GLB file")
+    run.add_argument("scene", help=_SCENE_HELP)
     run.add_argument("-o", "--output", help="output image OUT.exr; OUT.png, OUT.json and the "
                                             "store OUT.zarr go beside it (default: SCENE stem "
                                             "+ .exr in the current directory)")

@@ -126,11 +126,41 @@ class RenderContext:
                     or self.hard_lights is not None)
 
 
+def faces_inward(scene) -> bool:
+    """Whether most of the scene's area faces the centre of its bounding box: an enclosure lit
+    inside (a room), which a camera outside would see from behind, all black (issue 16)."""
+    v, p = scene.vertices, scene.polygons
+    corners = v[np.where(p >= 0, p, p[:, :1])]
+    n_corners = np.where(p[:, 3] >= 0, 4, 3)
+    corners[p[:, 3] < 0, 3] = 0.0
+    centroid = corners.sum(axis=1) / n_corners[:, None]
+    p3 = v[np.where(p[:, 3] >= 0, p[:, 3], p[:, 0])]
+    # area vectors: ½ d₁ × d₂ for quads, ½ (v1 − v0) × (v2 − v0) for triangles
+    quad = p[:, 3] >= 0
+    area_vec = 0.5 * np.where(quad[:, None],
+                              np.cross(v[p[:, 2]] - v[p[:, 0]], p3 - v[p[:, 1]]),
+                              np.cross(v[p[:, 1]] - v[p[:, 0]], v[p[:, 2]] - v[p[:, 0]]))
+    toward = np.einsum("ij,ij->i", area_vec, scene.bounds.mean(axis=0) - centroid)
+    area = np.linalg.norm(area_vec, axis=1)
+    return bool(area[toward > 0].sum() > 0.5 * area.sum())
+
+
 def default_camera(bounds: np.ndarray, width: int = 256, height: int = 256,
-                   fov: float = 40.0) -> Camera:
+                   fov: float = 40.0, inside: bool = False) -> Camera:
     """A camera on the −z side of the bounding box ``(2, 3)``, looking along +z, y up, framing
-    the whole box (the usual placement for y-up OBJ scenes)."""
+    the whole box (the usual placement for y-up OBJ scenes).
+
+    ``inside=True`` (an enclosure, :func:`faces_inward`): the camera stands inside the box,
+    5 % of its depth in front of the −z side, looking at the centre with a 70° field of view,
+    since from outside it would see only the backs of one-sided walls.
+    """
     centre = bounds.mean(axis=0)
+    if inside:
+        eye = centre - np.array([0.0, 0.0, 0.45 * (bounds[1, 2] - bounds[0, 2])])
+        if not np.linalg.norm(centre - eye) > 0:  # a flat box: look along z anyway
+            eye = centre - np.array([0.0, 0.0, 1.0])
+        return Camera(eye=eye, look_at=centre, up=np.array([0.0, 1.0, 0.0]), fov=70.0,
+                      width=width, height=height)
     radius = 0.5 * float(np.linalg.norm(bounds[1] - bounds[0])) or 1.0
     distance = 1.1 * radius / math.tan(math.radians(fov) / 2.0)
     eye = centre - np.array([0.0, 0.0, distance + (bounds[1, 2] - bounds[0, 2]) / 2.0])
@@ -448,7 +478,7 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
 
 def camera(scene: Scene, settings: Settings) -> Camera:
     """The scene's camera (or :func:`default_camera`) at the settings' image size."""
-    cam = scene.camera or default_camera(scene.bounds)
+    cam = scene.camera or default_camera(scene.bounds, inside=faces_inward(scene))
     return replace(cam, width=settings.width or cam.width, height=settings.height or cam.height)
 
 

@@ -134,3 +134,10 @@ MAX_LIGHT = 1e30
 #: a modelled block rests on the floor to the modeller's precision, not to round-off, and a
 #: gap of a millionth of the scene lets no visible light through.
 CONTACT = 1e-6
+
+#: Quadrics and parametric surfaces (``[[shape]]`` in the sidecar, MGF's ``sph``, ``cyl``,
+#: ``cone``, ``ring``, ``torus``) are tessellated so that no point of the true surface is
+#: farther than ``CHORD_ERROR * diag`` from its facet (:mod:`daskrad.scene.shapes`): a
+#: millimetre in a 1 m scene, a centimetre in a 10 m room.
+CHORD_ERROR = 1e-3
+

@@ -125,3 +125,28 @@ def test_vertex_average_is_what_the_image_interpolates():
     h = build_hierarchy(scene, 0.5, 0.25)
     values = np.full((h.n_elements, 3), 2.0)
     np.testing.assert_allclose(vertex_average(h, values), 2.0, rtol=1e-12)
+
+
+def test_default_camera_of_a_closed_room_stands_inside():
+    # issue 16: a room's walls face inward; from the old default place outside the box every
+    # pixel sees the back of a one-sided wall (black). An enclosure gets a camera inside, where
+    # every pixel sees a wall from its lit side.
+    from daskrad.scene import box_scene
+
+    room = box_scene(size=(4.0, 3.0, 5.0), emission_per_face=1.0, subdivisions=2)
+    solid = box_scene(size=(4.0, 3.0, 5.0), emission_per_face=1.0, inward=False)
+    assert render.faces_inward(room) and not render.faces_inward(solid)
+    h = build_hierarchy(room, 1.0, 1.0)
+    tris, tri_verts, tri_elem = hierarchy_triangles(h)
+
+    def image(camera):
+        ctx = render.RenderContext(
+            grid=build_grid(tris), tri_verts=tri_verts, tri_element=tri_elem,
+            elem_normal=h.elem_normal, vertex_radiance=np.ones((len(h.vertices), 3)),
+            camera=camera, spp=1)
+        return render.render(ctx)
+
+    outside = render.default_camera(room.bounds, 32, 32)
+    inside = render.default_camera(room.bounds, 32, 32, inside=render.faces_inward(room))
+    assert np.all(image(outside) == 0.0)
+    np.testing.assert_allclose(image(inside), 1.0, rtol=1e-12)

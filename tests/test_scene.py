@@ -16,6 +16,7 @@ from daskrad.scene.polygons import (
     convex_planar,
     faces_to_polygons,
     newell_normal,
+    pair_coplanar,
     pair_triangles,
     polygon_area,
 )
@@ -504,3 +505,69 @@ def test_big_concave_polygon_is_ear_clipped_all_around():
     np.testing.assert_allclose(0.5 * z.sum(), exact, rtol=1e-12)
     longest = np.linalg.norm(p - np.roll(p, 1, axis=1), axis=2).max(axis=1)
     assert (longest > 1.0).sum() <= 4 * np.log2(n)
+
+
+# --------------------------------------------------------------------------- triangle soups
+
+
+def _split_grid_soup(rng, n=4):
+    """The six faces of the unit cube as n × n quads, each split along a random diagonal
+    (either of its two), all triangles in a random order: ``(vertices, triangles)``."""
+    verts, tris = [], []
+    t = np.linspace(0.0, 1.0, n + 1)
+    for axis in range(3):
+        for high in (0, 1):
+            u_ax, v_ax = (axis + 1) % 3, (axis + 2) % 3
+            base = len(verts)
+            for i in range(n + 1):
+                for j in range(n + 1):
+                    p = np.zeros(3)
+                    p[u_ax], p[v_ax], p[axis] = t[i], t[j], high
+                    verts.append(p)
+            for i in range(n):
+                for j in range(n):
+                    q = [base + i * (n + 1) + j, base + (i + 1) * (n + 1) + j,
+                         base + (i + 1) * (n + 1) + j + 1, base + i * (n + 1) + j + 1]
+                    if not high:
+                        q = q[::-1]  # outward at the min faces too
+                    r = int(rng.integers(4))
+                    q = q[r:] + q[:r]
+                    tris += [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]
+    tris = np.array(tris)
+    return np.array(verts), tris[rng.permutation(len(tris))]
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".stl"])
+def test_triangle_soup_pairs_back_into_quads_whatever_the_order(tmp_path, suffix):
+    # issue 16 item 6: pairing only neighbours in the file found few quads in a shuffled soup;
+    # every split square of the cube comes back as one quad, wound as its triangles
+    verts, tris = _split_grid_soup(np.random.default_rng(7))
+    trimesh.Trimesh(verts, tris, process=False).export(tmp_path / f"box{suffix}")
+    write(tmp_path / "box.toml",
+          '[[light]]\ntype = "point"\nposition = [0.5, 0.5, 0.5]\nintensity = [1, 1, 1]\n')
+    scene = load_scene(tmp_path / f"box{suffix}")
+    assert len(scene.polygons) == len(tris) // 2 == 96
+    assert (scene.polygons[:, 3] >= 0).all()
+    assert polygon_area(scene.vertices, scene.polygons).sum() == pytest.approx(6.0, rel=RTOL)
+    # outward, as the triangles were
+    n = normals(scene)
+    assert (np.einsum("ij,ij->i", n, centroids(scene) - 0.5) > 0).all()
+    # what neighbour pairing alone recovers from the same order (the old behaviour)
+    alone = pair_triangles(scene.vertices if suffix == ".ply" else verts, tris, 1.7)
+    assert (alone[:, 3] >= 0).sum() < 96
+
+
+def test_pair_coplanar_leaves_bent_and_concave_pairs():
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.5],   # bent along 0-2
+                  [3, 0, 0], [4, 0, 0], [3.2, 0.2, 0], [3, 1, 0]], float)  # concave union
+    polys = np.array([[0, 1, 2, -1], [0, 2, 3, -1], [4, 5, 6, -1], [4, 6, 7, -1]])
+    out, keep = pair_coplanar(v, polys, np.zeros(4, int), 5.0)
+    assert keep.all() and (out[:, 3] < 0).all()
+    # different materials are not merged either
+    flat = v.copy()
+    flat[3, 2] = 0.0
+    out, keep = pair_coplanar(flat, polys[:2], np.array([0, 1]), 2.0)
+    assert keep.all()
+    out, keep = pair_coplanar(flat, polys[:2], np.array([0, 0]), 2.0)
+    assert keep.tolist() == [True, False]
+    assert out[0].tolist() in ([0, 1, 2, 3], [1, 2, 3, 0], [2, 3, 0, 1], [3, 0, 1, 2])

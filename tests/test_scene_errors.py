@@ -84,7 +84,7 @@ CASES = {
     "toml-unknown-table": lambda t: (_toml(t, "[render]\nspp = 4\n"), None, t / "s.toml",
                                      "'render'"),
     "toml-shape": lambda t: (_toml(t, '[[shape]]\ntype = "sphere"\n'), None, t / "s.toml",
-                             "not supported"),
+                             "needs 'material'"),
     "toml-wrong-type": lambda t: (_toml(t, "[camera]\neye = [0, 0, 1]\nlook_at = [0, 0, 0]\n"
                                         'fov = "wide"\n'), None, t / "s.toml", "fov"),
     "toml-short-vector": lambda t: (_toml(t, '[[light]]\ntype = "point"\nposition = [0, 1]\n'

@@ -20,6 +20,21 @@ naming the TOML file)::
     type = "directional"     # direction the light travels (normalized here);
     direction = [x, y, z]    # irradiance: W/m² on a surface facing the light
     irradiance = [r, g, b]
+
+    [[material]]             # a material for [[shape]]s (beside the MTL's, if any)
+    name = "white"           # required, not a name the MTL already defines
+    diffuse = [r, g, b]      # Kd in [0, 1), default [0.73, 0.73, 0.73]
+    emission = [r, g, b]     # Ke, emitted radiance, default [0, 0, 0]
+
+    [[shape]]                # a quadric or Bezier patch, tessellated when loading
+    type = "sphere"          # sphere, cylinder, cone, disc, ring, torus, bezier
+    material = "white"       # required: a [[material]] or MTL name
+    radius = 0.5             # the type's dimensions (daskrad.scene.shapes.parse_shape)
+    translate = [x, y, z]    # placement: scale, rotate [deg about x, y, z], translate,
+                             # or matrix = 4 rows of 4; inside = true faces inward
+
+    [mgf]
+    one_sided = true         # MGF input: every face one-sided (as RenderPark runs its scenes)
 """
 
 from __future__ import annotations
@@ -32,6 +47,8 @@ import numpy as np
 
 from daskrad import tolerances
 from daskrad.errors import SceneError
+from daskrad.scene.obj import DEFAULT_DIFFUSE
+from daskrad.scene.shapes import parse_shape
 from daskrad.scene.types import Camera, DirectionalLights, PointLights
 
 DEFAULT_IMAGE_SIZE = 256
@@ -51,6 +68,12 @@ class Config:
     camera: Camera | None
     point_lights: PointLights
     directional_lights: DirectionalLights
+    #: ``[[material]]``: ``(name, diffuse (3,), emission (3,))`` each, in file order
+    materials: tuple = ()
+    #: ``[[shape]]``: dicts from :func:`daskrad.scene.shapes.parse_shape`, in file order
+    shapes: tuple = ()
+    #: ``[mgf] one_sided``: MGF faces one-sided whatever their material's ``sides``
+    mgf_one_sided: bool = False
 
 
 def _is_number(x) -> bool:
@@ -152,6 +175,40 @@ def _lights(entries, path: Path) -> tuple[PointLights, DirectionalLights]:
     return points, directional
 
 
+def _materials(entries, path: Path) -> tuple:
+    if not isinstance(entries, list):
+        raise SceneError("material must be an array of tables: write [[material]]", path)
+    out, seen = [], set()
+    for i, entry in enumerate(entries):
+        where = f"[[material]] #{i + 1}"
+        _check_keys(entry, {"name", "diffuse", "emission"}, {"name"}, where, path)
+        name = entry["name"]
+        if not isinstance(name, str) or not name:
+            raise SceneError(f"{where}.name must be a non-empty string", path)
+        if name in seen:
+            raise SceneError(f"{where}: material {name!r} is defined twice", path)
+        seen.add(name)
+        kd = (_vec3(entry, "diffuse", where, path) if "diffuse" in entry
+              else np.array(DEFAULT_DIFFUSE))
+        ke = _vec3(entry, "emission", where, path) if "emission" in entry else np.zeros(3)
+        out.append((name, kd, ke))
+    return tuple(out)
+
+
+def _shapes(entries, path: Path) -> tuple:
+    if not isinstance(entries, list):
+        raise SceneError("shape must be an array of tables: write [[shape]]", path)
+    return tuple(parse_shape(e, f"[[shape]] #{i + 1}", path) for i, e in enumerate(entries))
+
+
+def _mgf(table, path: Path) -> bool:
+    _check_keys(table, {"one_sided"}, set(), "[mgf]", path)
+    value = table.get("one_sided", False)
+    if not isinstance(value, bool):
+        raise SceneError(f"mgf.one_sided must be true or false, got {value!r}", path)
+    return value
+
+
 def read_config(path: str | Path) -> Config:
     """Parse and check one TOML sidecar."""
     path = Path(path)
@@ -169,13 +226,16 @@ def read_config(path: str | Path) -> Config:
         raise SceneError(f"cannot read TOML config: {err.strerror or err}", path) from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as err:
         raise SceneError(f"malformed TOML: {err}", path) from None
-    unknown = sorted(set(data) - {"camera", "light"})
+    unknown = sorted(set(data) - {"camera", "light", "material", "shape", "mgf"})
     if unknown:
-        hint = " ([[shape]] is not supported yet)" if unknown[0] == "shape" else ""
         raise SceneError(
-            f"unknown key {unknown[0]!r} (allowed: [camera], [[light]]){hint}", path
+            f"unknown key {unknown[0]!r} (allowed: [camera], [[light]], [[material]], "
+            "[[shape]], [mgf])", path
         )
     camera = _camera(data["camera"], path) if "camera" in data else None
     points, directional = _lights(data.get("light", []), path)
-    return Config(str(path), camera, points, directional)
+    return Config(str(path), camera, points, directional,
+                  materials=_materials(data.get("material", []), path),
+                  shapes=_shapes(data.get("shape", []), path),
+                  mgf_one_sided=_mgf(data.get("mgf", {}), path))
 

@@ -2,8 +2,8 @@
 
 trimesh gives one geometry per material; each node of ``scene.graph.nodes_geometry`` places a
 geometry with its own transform. These formats hold triangles (trimesh splits PLY quads into
-adjacent halves), so quads are recovered with :func:`pair_triangles` where they are planar
-and convex.
+adjacent halves), so quads are recovered with :func:`pair_coplanar` where they are planar
+and convex, whatever the order and split of the triangles.
 
 Materials: PLY and STL have none, so every face gets a white 0.73 diffuse, non-emitting
 material. glTF gives ``baseColorFactor`` (diffuse) and ``emissiveFactor`` (emitted radiance,
@@ -23,7 +23,7 @@ import numpy as np
 
 from daskrad.errors import SceneError
 from daskrad.scene.obj import DEFAULT_DIFFUSE, DEFAULT_MATERIAL
-from daskrad.scene.polygons import pair_triangles
+from daskrad.scene.polygons import pair_coplanar
 from daskrad.scene.validate import check_vertices, scale_of
 
 FORMATS = {".ply": "ply", ".stl": "stl", ".gltf": "gltf", ".glb": "glb"}
@@ -171,12 +171,10 @@ def read_mesh(path: Path):
         faces = inverse.reshape(-1)[faces]
     vertices = check_vertices(vertices, str(path))
     diag = scale_of(vertices, faces)
-    # pair only within a run of one material: compute per run boundaries
-    polys, pmat = [], []
-    bounds = np.flatnonzero(np.diff(face_mat)) + 1
-    for a, b in zip(np.r_[0, bounds], np.r_[bounds, len(faces)], strict=True):
-        p = pair_triangles(vertices, faces[a:b], diag)
-        polys.append(p)
-        pmat.append(np.full(len(p), face_mat[a]))
-    return (vertices, np.concatenate(polys), np.concatenate(pmat), names,
+    # triangles back into quads by geometry, not by where the file put them (issue 16 item 6:
+    # pairing neighbours in the file only works in trimesh's own split orders, and in a
+    # shuffled soup it can join halves of two different squares into a parallelogram)
+    tris = np.column_stack([faces, np.full(len(faces), -1)])
+    polys, keep = pair_coplanar(vertices, tris, face_mat, diag)
+    return (vertices, polys, face_mat[keep], names,
             np.array(kds).reshape(-1, 3), np.array(kes).reshape(-1, 3))

@@ -295,3 +295,86 @@ def pair_triangles(vertices: np.ndarray, tris: np.ndarray, diag: float) -> np.nd
     out = out_tri.copy()
     out[first] = quads[first]
     return out[keep]
+
+
+def pair_coplanar(vertices: np.ndarray, polygons: np.ndarray, material: np.ndarray,
+                  diag: float) -> tuple[np.ndarray, np.ndarray]:
+    """Merge triangles back into convex quads whatever the order and split of the file.
+
+    Two triangles of one material sharing an edge in opposite directions (so consistently
+    wound) are merged when the quad they make is planar and convex
+    (:func:`convex_planar`). Each triangle joins at most one quad, chosen greedily: first
+    pairs whose shared edge is the longest edge of both triangles (the diagonal of a split
+    rectangle or parallelogram), then the others, each group in order of the first triangle.
+    The result does not depend on where the triangles sit in the file (issue 16 item 6:
+    :func:`pair_triangles` only finds the halves its neighbours left side by side).
+
+    Parameters
+    ----------
+    vertices : (V, 3) float64
+    polygons : (Q, 4) int, ``-1`` in column 3 for triangles (quads are left alone)
+    material : (Q,) int
+    diag : float
+
+    Returns
+    -------
+    polygons : (Q', 4) int32, the merged quad in place of its first triangle
+    keep : (Q,) bool, the rows of the input that remain (to carry per-polygon data)
+    """
+    polygons = np.asarray(polygons, dtype=np.int64)
+    material = np.asarray(material)
+    keep = np.ones(len(polygons), dtype=bool)
+    tri_rows = np.flatnonzero(polygons[:, 3] < 0)
+    if len(tri_rows) < 2:
+        return polygons.astype(np.int32), keep
+    t = polygons[tri_rows, :3]
+    nv = len(vertices)
+    # directed edges k: (t[k], t[k+1]) for k = 0, 1, 2; the edge opposite corner (k + 2) % 3
+    a = t.reshape(-1)
+    b = np.roll(t, -1, axis=1).reshape(-1)
+    owner = np.repeat(np.arange(len(t)), 3)
+    fwd = a * nv + b
+    order = np.argsort(fwd, kind="stable")
+    sorted_fwd = fwd[order]
+    unique_edge = np.ones(len(fwd), bool)
+    dup = sorted_fwd[1:] == sorted_fwd[:-1]
+    unique_edge[order[1:][dup]] = False
+    unique_edge[order[:-1][dup]] = False
+    rev = b * nv + a
+    pos = np.searchsorted(sorted_fwd, rev)
+    pos = np.minimum(pos, len(sorted_fwd) - 1)
+    found = (sorted_fwd[pos] == rev) & unique_edge
+    other = np.where(found, order[pos], -1)
+    found &= other >= 0
+    found &= unique_edge[np.maximum(other, 0)]
+    e = np.flatnonzero(found & (owner < owner[np.maximum(other, 0)]))
+    f = other[e]
+    ti, ui = owner[e], owner[f]
+    same = material[tri_rows[ti]] == material[tri_rows[ui]]
+    e, f, ti, ui = e[same], f[same], ti[same], ui[same]
+    # quad (x, y, w, z): t = (x, y, z) with the shared edge y -> z, w the far corner of u
+    k = e % 3
+    y, z = a[e], b[e]
+    x = t[ti, (k + 2) % 3]
+    w = t[ui, (f % 3 + 2) % 3]
+    quads = np.column_stack([x, y, w, z])
+    ok = convex_planar(vertices, quads, diag)
+    e, f, ti, ui, quads = e[ok], f[ok], ti[ok], ui[ok], quads[ok]
+    if len(e) == 0:
+        return polygons.astype(np.int32), keep
+    # priority 0 when the shared edge is the longest edge of both triangles
+    length = np.linalg.norm(vertices[b] - vertices[a], axis=1).reshape(-1, 3)
+    longest_t = length[ti, e % 3] >= length[ti].max(axis=1)
+    longest_u = length[ui, f % 3] >= length[ui].max(axis=1)
+    priority = np.where(longest_t & longest_u, 0, 1)
+    ranking = np.lexsort((ui, ti, priority))
+    used = np.zeros(len(t), bool)
+    out = polygons.copy()
+    for r in ranking:
+        i, j = ti[r], ui[r]
+        if used[i] or used[j]:
+            continue
+        used[i] = used[j] = True
+        out[tri_rows[i]] = quads[r]
+        keep[tri_rows[j]] = False
+    return out[keep].astype(np.int32), keep
