@@ -1,7 +1,7 @@
 """Hard lights against the path tracer: sun, point light, a light outside a closed room (issue 14).
 
 Scenes (written into a temporary directory from ``scenes/cornell_box.obj`` by
-``tests/shadow_scenes.py``):
+``daskrad/testing/shadows.py``):
 
 (a) ``open box, sun``: the Cornell box without its ceiling and light, a directional light of
     irradiance 3 W/m² travelling along normalize(0.3, −1, 0.25);
@@ -51,7 +51,7 @@ from daskrad.scene import load_scene
 from daskrad.settings import Settings
 
 sys.path.insert(0, str(Path(__file__).parent.parent))
-from tests import shadow_scenes  # noqa: E402
+from daskrad.testing import shadows as shadow_scenes  # noqa: E402
 
 RESULTS = Path(__file__).parent / "results"
 SIZE = 128

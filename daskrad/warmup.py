@@ -31,6 +31,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 #: The marker file, in the kernels' numba cache directory.
 MARKER = "daskrad-warm.json"
 
@@ -135,7 +137,7 @@ def cache_dir() -> Path:
         return Path(update.__file__).parent / "__pycache__"
 
 
-def _kernel_stamps() -> dict[str, list[int]]:
+def kernel_stamps() -> dict[str, list[int]]:
     """``{file name: [mtime_ns, size]}`` of every kernel source, what numba's cache checks."""
     here = Path(__file__).parent / "kernels"
     out = {}
@@ -146,11 +148,11 @@ def _kernel_stamps() -> dict[str, list[int]]:
     return out
 
 
-def _environment() -> dict:
+def environment() -> dict:
     import numba
 
     return {"numba": numba.__version__, "python": sys.version.split()[0],
-            "stamps": _kernel_stamps()}
+            "stamps": kernel_stamps()}
 
 
 def _read_marker(directory: Path) -> dict | None:
@@ -165,7 +167,7 @@ def is_warm() -> bool:
     :func:`warmup` matches the kernel sources and numba, and its cache files are all there."""
     directory = cache_dir()
     marker = _read_marker(directory)
-    if not marker or marker.get("environment") != _environment():
+    if not marker or marker.get("environment") != environment():
         return False
     try:
         present = set(os.listdir(directory))
@@ -236,6 +238,13 @@ def compile_all() -> None:
             ctx = shooting.make_context(h, method, 16 if method != "hemicube" else 8,
                                         grid=mesh.grid, tri_element=mesh.tri_element)
             shooting.shoot_rows(ctx, [0, h.n_patches - 1], shooting.RowCache())
+        # the exact test of the coplanar-overlap check runs only where two faces of one plane
+        # meet: two overlapping squares (and one overlap, found), as most real scenes have
+        from daskrad.scene.overlap import coplanar_overlaps
+
+        sq = np.array([[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0], [1, 1, 0], [3, 1, 0],
+                       [3, 3, 0], [1, 3, 0]], float)
+        coplanar_overlaps(sq, np.array([[0, 1, 2, 3], [4, 5, 6, 7]]), 4.25)
 
 
 def warmup(verbose: bool = True) -> float:
@@ -247,14 +256,14 @@ def warmup(verbose: bool = True) -> float:
     t = time.perf_counter()
     directory = cache_dir()
     marker = _read_marker(directory)
-    if marker is None or marker.get("environment") != _environment():
+    if marker is None or marker.get("environment") != environment():
         drop_cache(directory)
     if verbose:
         print("daskrad: compiling kernels...", file=sys.stderr, flush=True)
     compile_all()
     seconds = time.perf_counter() - t
     index = sorted(n for n in os.listdir(directory) if n.endswith(".nbi"))
-    payload = {"environment": _environment(), "index": index, "seconds": seconds}
+    payload = {"environment": environment(), "index": index, "seconds": seconds}
     tmp = directory / f".{MARKER}.{os.getpid()}"
     try:
         tmp.write_text(json.dumps(payload, indent=1))

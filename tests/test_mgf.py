@@ -316,7 +316,7 @@ def test_cli_refuses_bad_mgf_in_one_line(tmp_path):
 @pytest.mark.skipif(not (SHARED / "mgf" / "cube.mgf").is_file(),
                     reason="the shared scenes are not beside the repository")
 def test_renderpark_cube_matches_its_converted_obj():
-    # ../shared/scenes/cube was converted from this file by another tool (README there):
+    # the shared cube scene was converted from this file by another tool (README there):
     # the same polygons, area and materials (one-sided, as RenderPark runs it)
     with pytest.warns(UserWarning, match="rs .* of 7 materials ignored"):
         data = read_mgf(SHARED / "mgf" / "cube.mgf", one_sided=True)

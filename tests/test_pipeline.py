@@ -278,3 +278,14 @@ def test_a_full_disk_is_one_line_and_leaves_nothing_half_written(earlier, tmp_pa
     # the earlier image is untouched and no temporary image is left; the store was swapped in
     assert after[Path("c.exr")] == before[Path("c.exr")]
     assert not [p for p in after if ".partial" in str(p)]
+
+
+def test_a_dashboard_open_to_the_network_is_said(tmp_path, capsys):
+    # issue 13: --dashboard 0.0.0.0:PORT bound every interface while printing a 127.0.0.1 link
+    run(CORNELL, tmp_path / "c.exr", SMALL.replace(workers=2, dashboard="0.0.0.0:0"),
+        progress=False)
+    err = capsys.readouterr().err
+    assert "daskrad: warning: the dashboard listens on 0.0.0.0 (0.0.0.0:0)" in err
+    run(CORNELL, tmp_path / "d.exr", SMALL.replace(workers=2, dashboard="127.0.0.1:0"),
+        progress=False)
+    assert "dashboard listens" not in capsys.readouterr().err

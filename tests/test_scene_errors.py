@@ -424,7 +424,7 @@ def test_coplanar_overlap_far_from_the_origin_and_at_any_scale():
         with pytest.warns(DaskradWarning, match="first face 2 on face 1"):
             s = scene_from_arrays(v * scale + offset, [[0, 1, 2, 3], [4, 5, 6, 7]], [0, 0],
                                   [[0.5] * 3], [[0.0] * 3], point_lights=lamp)
-        lift = s.vertices[s.polygons[1], 2] - offset
+        lift = s.vertices[s.polygons[1], 2] + s.origin[2] - offset   # file coordinates
         np.testing.assert_allclose(lift, tolerances.DECAL_LIFT * np.sqrt(18) * scale,
                                    rtol=1e-6)
         # lifted off the plane by 1e-6 of the scene's size: two planes, nothing to do

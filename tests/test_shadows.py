@@ -21,7 +21,7 @@ from daskrad.mesh.contacts import cut_at_contacts
 from daskrad.run import run
 from daskrad.scene import Camera, load_scene, scene_from_arrays
 from daskrad.settings import Settings
-from tests import shadow_scenes
+from daskrad.testing import shadows as shadow_scenes
 from tests.helpers import render_context
 
 RHO = 0.5

@@ -22,7 +22,7 @@ from daskrad.scene import load_scene
 from daskrad.scene import shapes as shp
 from daskrad.scene.polygons import convex_planar, polygon_area
 from daskrad.settings import Settings
-from tests.test_formfactor import raster_bound
+from tests.helpers import raster_bound
 
 
 def triangles(vertices, polygons):

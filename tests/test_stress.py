@@ -21,6 +21,7 @@ from daskrad import solve, tolerances
 from daskrad.errors import DaskradWarning, SceneError
 from daskrad.run import solve_scene
 from daskrad.scene import box_scene, scene_from_arrays
+from daskrad.settings import Settings
 from daskrad.testing import stress as sc
 
 
@@ -339,3 +340,17 @@ def test_coplanar_overlap_check_of_100000_triangles_in_seconds():
     # 100,000 triangles tiling one plane (no overlap found) and 100,000 small ones scattered
     # in one plane: each checked in seconds (10,000 took 14.6 s before)
     _assert_ok(sc.coplanar_soup_case(100_000))
+
+
+@pytest.mark.parametrize("offset", [1e6, 1e9, 1e12])
+def test_a_box_far_from_the_origin_is_the_box_at_the_origin(offset):
+    # issue 13: a unit box moved to 1e12 came out 8 % off (at 1e9 the element count changed).
+    # Worked relative to its centre (an exact shift), it is the same scene: within 1e-6
+    def box(at):
+        return box_scene(size=(1.0, 1.0, 1.0), diffuse=0.5,
+                         emission_per_face=[0, 0, 0, 1, 0, 0], origin=np.full(3, at))
+
+    s = Settings(patch_size=0.5, element_size=0.25, resolution=32, tolerance=1e-3)
+    near, far = solve_scene(box(0.0), s), solve_scene(box(offset), s)
+    assert far.hierarchy.n_elements == near.hierarchy.n_elements
+    np.testing.assert_allclose(far.solution.radiosity, near.solution.radiosity, rtol=1e-6)

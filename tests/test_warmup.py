@@ -24,7 +24,7 @@ def cache(tmp_path, monkeypatch):
     for name in ("a-1.py311.nbi", "a-1.py311.1.nbc", "b-7.py311.nbi"):
         (d / name).write_bytes(b"x")
     (d / warmup.MARKER).write_text(json.dumps({
-        "environment": warmup._environment(), "index": ["a-1.py311.nbi", "b-7.py311.nbi"],
+        "environment": warmup.environment(), "index": ["a-1.py311.nbi", "b-7.py311.nbi"],
         "seconds": 12.3}))
     monkeypatch.setattr(warmup, "cache_dir", lambda: d)
     return d
@@ -41,10 +41,10 @@ def test_a_missing_cache_file_makes_it_cold(cache):
 
 
 def test_an_edited_kernel_source_makes_it_cold(cache, monkeypatch):
-    stamps = warmup._kernel_stamps()
+    stamps = warmup.kernel_stamps()
     name = sorted(stamps)[0]
     stamps[name] = [stamps[name][0] + 1, stamps[name][1]]     # touched: numba recompiles it
-    monkeypatch.setattr(warmup, "_kernel_stamps", lambda: stamps)
+    monkeypatch.setattr(warmup, "kernel_stamps", lambda: stamps)
     assert not warmup.is_warm()
 
 

@@ -459,7 +459,7 @@ def test_automatic_sizes_are_reported_as_resolved(tmp_path, capsys):
 
 def test_the_dashboard_shows_each_phase_with_its_progress_from_the_start(tmp_path,
                                                                          cluster_client):
-    from daskrad.distributed.dashboard import _phase_html
+    from daskrad.distributed.dashboard import phase_html
     from daskrad.distributed.dask_executor import DaskExecutor
     from daskrad.distributed.store import Store
     from daskrad.run import run
@@ -491,7 +491,7 @@ def test_the_dashboard_shows_each_phase_with_its_progress_from_the_start(tmp_pat
         assert [p for p in published if p["phase"] == name][-1]["fraction"] == 1.0
     shooting = [p["fraction"] for p in published if p["phase"] == "shooting"]
     assert shooting == sorted(shooting) and shooting[-1] > 0    # the bar only moves forward
-    page = _phase_html(published[-1])
+    page = phase_html(published[-1])
     assert "phase: rendering" in page and '<progress value="1.0000" max="1"' in page
 
 

@@ -47,7 +47,7 @@ def _curve_svg(history: list, tolerance: float, width: int = 480, height: int = 
             f'points="{" ".join(pts)}"/></svg>')
 
 
-def _phase_html(phase: dict) -> str:
+def phase_html(phase: dict) -> str:
     """The current phase (preprocessing, direct light, shooting, rendering) and a progress bar."""
     if not phase:
         return "<p>no run has started yet</p>"
@@ -73,7 +73,7 @@ class DaskradPage(RequestHandler):
             "<!doctype html><html><head><title>daskrad</title>"
             f'<meta http-equiv="refresh" content="{REFRESH_SECONDS}"></head>'
             '<body style="font-family:sans-serif"><h2>daskrad: progressive refinement</h2>'
-            + _phase_html(m.get("phase", {}))
+            + phase_html(m.get("phase", {}))
             + (f"<table>{rows}</table>" if p else "<p>no run has published progress yet</p>")
             + "<h3>relative unshot RMS (log scale)</h3>"
             + _curve_svg(p.get("history", []), float(p.get("tolerance", 1e-3)))

@@ -4,13 +4,14 @@
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from daskrad import tolerances
-from daskrad.errors import SceneError
+from daskrad.errors import DaskradWarning, SceneError
 from daskrad.scene import shapes as shp
 from daskrad.scene.config import Config, read_config
 from daskrad.scene.meshfile import FORMATS, gltf_json, read_mesh
@@ -83,6 +84,7 @@ def load_scene(path: str | Path, config: str | Path | None = None,
         cfg = read_config(found) if found is not None else None
 
     ks, ns, mirror, polygon_face, two_sided = None, None, None, None, None
+    notes: list[str] = []
     if suffix == ".toml":
         if not cfg.shapes:
             raise SceneError("no faces: a TOML scene needs [[shape]]s", path)
@@ -91,7 +93,12 @@ def load_scene(path: str | Path, config: str | Path | None = None,
         polygon_material = np.zeros(0, np.int64)
         names, kd, ke = [], np.zeros((0, 3)), np.zeros((0, 3))
     elif suffix == ".mgf":
-        mgf = read_mgf(path, one_sided=cfg is not None and cfg.mgf_one_sided)
+        with warnings.catch_warnings(record=True) as said:     # kept for Scene.warnings
+            warnings.simplefilter("always", DaskradWarning)
+            mgf = read_mgf(path, one_sided=cfg is not None and cfg.mgf_one_sided)
+        notes = [str(w.message) for w in said if issubclass(w.category, DaskradWarning)]
+        for w in said:      # said again where the caller listens (the CLI: one line each)
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         vertices, polygons, polygon_material = mgf.vertices, mgf.polygons, mgf.polygon_material
         names, kd, ke = mgf.names, mgf.diffuse, mgf.emission
         polygon_face, two_sided = mgf.polygon_face, mgf.two_sided
@@ -121,7 +128,7 @@ def load_scene(path: str | Path, config: str | Path | None = None,
     if suffix in (".gltf", ".glb"):
         cfg = _with_gltf(cfg, gltf_json(path), path, camera)
 
-    return scene_from_arrays(
+    scene = scene_from_arrays(
         vertices,
         polygons,
         polygon_material,
@@ -138,6 +145,7 @@ def load_scene(path: str | Path, config: str | Path | None = None,
         polygon_face=polygon_face,
         two_sided=two_sided,
     )
+    return replace(scene, warnings=(*notes, *scene.warnings)) if notes else scene
 
 
 def _with_gltf(cfg: Config | None, doc: dict, path: Path, name: str | None) -> Config:

@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from daskrad import tolerances
-from daskrad.errors import SceneError
+from daskrad.errors import DaskradWarning, SceneError
 from daskrad.scene import shapes as shp
 from daskrad.scene.polygons import faces_to_polygons
 
@@ -677,7 +677,7 @@ def read_mgf(path: str | Path, one_sided: bool = False) -> MgfData:
         f, line, key = reader.unknown[0]
         more = f" and {len(reader.unknown) - 1} more" if len(reader.unknown) > 1 else ""
         warnings.warn(f"{f}: line {line}: unknown MGF entity {key!r} skipped{more}",
-                      stacklevel=2)
+                      DaskradWarning, stacklevel=2)
     if not reader.counts and not reader.prims:
         raise SceneError("no faces in the file", path)
 
@@ -719,12 +719,12 @@ def read_mgf(path: str | Path, one_sided: bool = False) -> MgfData:
     if clamped:
         warnings.warn(f"{path}: diffuse reflectance of {len(clamped)} materials reaches 1 in "
                       f"a channel (first: {clamped[0]!r}): scaled down to "
-                      f"{MAX_REFLECTANCE}", stacklevel=2)
+                      f"{MAX_REFLECTANCE}", DaskradWarning, stacklevel=2)
     dropped = sorted({k for r in used for k in table[r][4] if k != "rd>=1"})
     if dropped:
         n = sum(1 for r in used if table[r][4] - {"rd>=1"})
         warnings.warn(f"{path}: {', '.join(dropped)} (specular/transmission) of {n} materials "
-                      "ignored: daskrad's surfaces are diffuse", stacklevel=2)
+                      "ignored: daskrad's surfaces are diffuse", DaskradWarning, stacklevel=2)
     return MgfData(
         vertices=vertices,
         polygons=polygons,

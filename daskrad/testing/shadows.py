@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-SCENES = Path(__file__).parent.parent / "scenes"
+SCENES = Path(__file__).resolve().parents[2] / "scenes"   # the source checkout's
 CORNELL = SCENES / "cornell_box.obj"
 
 #: The sun of issue 14: irradiance 3 W/m² (on a surface facing it), travelling along
