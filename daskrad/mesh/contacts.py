@@ -60,8 +60,10 @@ def cut_at_contacts(scene: Scene) -> tuple[Scene, np.ndarray, np.ndarray]:
     polygons[new] = rows
     vertices = np.concatenate([np.asarray(scene.vertices, np.float64),
                                pieces[new].reshape(-1, 3)])
+    back = scene.back_material
     out = dataclasses.replace(scene, vertices=vertices, polygons=polygons,
-                              polygon_material=np.asarray(scene.polygon_material)[parent])
+                              polygon_material=np.asarray(scene.polygon_material)[parent],
+                              back_material=None if back is None else back[parent])
     return out, parent, normals[parent]
 
 
