@@ -30,15 +30,18 @@ SIZE = 128
 SPP = 2048
 
 
-def reference() -> tuple[np.ndarray, float]:
-    """The cached reference image and its estimated relative RMS noise (from two halves)."""
-    path = RESULTS / f"cornell_reference_{SIZE}.exr"
-    half_path = RESULTS / f"cornell_reference_{SIZE}_half.exr"
-    scene = load_scene(SCENE)
-    cam = dataclasses.replace(scene.camera, width=SIZE, height=SIZE)
+def cached_path_trace(scene_path: Path, stem: str, spp: int = SPP, size: int = SIZE
+                      ) -> tuple[np.ndarray, float]:
+    """The path-traced image of ``scene_path`` through its camera at ``size``², ``spp`` paths
+    per pixel, cached as ``results/<stem>_<size>.exr`` with its first half
+    (``..._half.exr``), and its relative RMS noise estimated from the two halves."""
+    path = RESULTS / f"{stem}_{size}.exr"
+    half_path = RESULTS / f"{stem}_{size}_half.exr"
     if not path.exists() or not half_path.exists():
-        a = path_trace(scene, cam, spp=SPP // 2, seed=1)
-        b = path_trace(scene, cam, spp=SPP // 2, seed=100_003)
+        scene = load_scene(scene_path)
+        cam = dataclasses.replace(scene.camera, width=size, height=size)
+        a = path_trace(scene, cam, spp=spp // 2, seed=1)
+        b = path_trace(scene, cam, spp=spp // 2, seed=100_003)
         RESULTS.mkdir(exist_ok=True)
         write_exr(path, 0.5 * (a + b))
         write_exr(half_path, a)
@@ -48,6 +51,11 @@ def reference() -> tuple[np.ndarray, float]:
     # var(half) = 2 var(full); the halves differ from the full image by ± its noise
     noise = np.sqrt(np.mean((half - ref) ** 2)) / np.sqrt(np.mean(ref**2))
     return ref, float(noise)
+
+
+def reference() -> tuple[np.ndarray, float]:
+    """The cached reference image and its estimated relative RMS noise (from two halves)."""
+    return cached_path_trace(SCENE, "cornell_reference")
 
 
 def errors(img: np.ndarray, ref: np.ndarray) -> dict:

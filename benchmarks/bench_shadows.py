@@ -42,10 +42,11 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.bench_reference import cached_path_trace
 from daskrad import render, tolerances
-from daskrad.io import read_exr, write_exr
+from daskrad.io import read_exr
 from daskrad.kernels.grid import any_hit, build_grid, closest_hit
-from daskrad.reference import path_trace, scene_triangles
+from daskrad.reference import scene_triangles
 from daskrad.run import run
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
@@ -77,20 +78,9 @@ def _scenes(tmp: Path) -> list[tuple[str, Path]]:
 
 def reference(name: str, path: Path) -> tuple[np.ndarray, float]:
     """The cached path-traced image of ``path`` and its RMS noise (radiance, from two halves)."""
-    key = name.replace(",", "").replace(" ", "_")
-    full = RESULTS / f"shadows_{key}_{SIZE}.exr"
-    half = RESULTS / f"shadows_{key}_{SIZE}_half.exr"
-    if not full.exists() or not half.exists():
-        scene = load_scene(path)
-        cam = dataclasses.replace(scene.camera, width=SIZE, height=SIZE)
-        a = path_trace(scene, cam, spp=SPP // 2, seed=1)
-        b = path_trace(scene, cam, spp=SPP // 2, seed=100_003)
-        RESULTS.mkdir(exist_ok=True)
-        write_exr(full, 0.5 * (a + b))
-        write_exr(half, a)
-    ref = read_exr(full).astype(np.float64)
-    h = read_exr(half).astype(np.float64)
-    return ref, float(np.sqrt(np.mean((h - ref) ** 2)))
+    ref, relative = cached_path_trace(path, "shadows_" + name.replace(",", "").replace(" ", "_"),
+                                      SPP, SIZE)
+    return ref, relative * float(np.sqrt(np.mean(ref**2)))
 
 
 def _dilate(mask: np.ndarray, r: int) -> np.ndarray:

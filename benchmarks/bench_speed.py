@@ -42,9 +42,9 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.bench_reference import errors
+from benchmarks.bench_reference import cached_path_trace, errors
 from benchmarks.bench_reference import reference as cornell_reference
-from daskrad.io import read_exr, write_exr, write_png
+from daskrad.io import read_exr
 from daskrad.reference import path_trace
 from daskrad.run import run
 from daskrad.scene import load_scene
@@ -87,21 +87,7 @@ def _env(**extra) -> dict:
 def lit_room_reference() -> tuple[np.ndarray, float]:
     """The lit room's path-traced reference at SIZE² and REFERENCE_SPP (two halves, cached as
     bench_reference caches the Cornell box's) and its relative RMS noise."""
-    path = RESULTS / f"lit_room_reference_{SIZE}.exr"
-    half_path = RESULTS / f"lit_room_reference_{SIZE}_half.exr"
-    if not path.exists() or not half_path.exists():
-        scene = load_scene(LIT_ROOM)
-        cam = dataclasses.replace(scene.camera, width=SIZE, height=SIZE)
-        a = path_trace(scene, cam, spp=REFERENCE_SPP // 2, seed=1)
-        b = path_trace(scene, cam, spp=REFERENCE_SPP // 2, seed=100_003)
-        RESULTS.mkdir(exist_ok=True)
-        write_exr(path, 0.5 * (a + b))
-        write_exr(half_path, a)
-        write_png(path.with_suffix(".png"), 0.5 * (a + b))
-    ref = read_exr(path).astype(np.float64)
-    half = read_exr(half_path).astype(np.float64)
-    noise = np.sqrt(np.mean((half - ref) ** 2)) / np.sqrt(np.mean(ref**2))
-    return ref, float(noise)
+    return cached_path_trace(LIT_ROOM, "lit_room_reference", REFERENCE_SPP, SIZE)
 
 
 def timed_run(scene: Path, settings: Settings, repeats: int = REPEATS) -> dict:

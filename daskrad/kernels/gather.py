@@ -18,17 +18,7 @@ from numba import prange
 from daskrad.kernels._jit import jit, jit_parallel
 from daskrad.kernels.direct import hash01
 from daskrad.kernels.grid import any_hit_one, closest_hit_one
-
-
-@jit
-def _frame(n):
-    """Two unit tangents completing ``n`` (Duff et al. 2017)."""
-    sign = 1.0 if n[2] >= 0.0 else -1.0
-    a = -1.0 / (sign + n[2])
-    b = n[0] * n[1] * a
-    t = np.array([1.0 + sign * n[0] * n[0] * a, sign * b, -sign * n[0]])
-    s = np.array([b, sign + n[1] * n[1] * a, -n[1]])
-    return t, s
+from daskrad.kernels.pathtrace import tangent_frame
 
 
 @jit
@@ -49,7 +39,7 @@ def near_surface(grid, points, normals, off, reach, side):
     out = np.zeros(n, np.bool_)
     for i in prange(n):
         nrm = normals[i]
-        t, s = _frame(nrm)
+        t, s = tangent_frame(nrm)
         o = points[i] + off * nrm
         for k in range(side * side):
             d = _direction(nrm, t, s, ((k % side) + 0.5) / side, ((k // side) + 0.5) / side)
@@ -80,7 +70,7 @@ def gather_radiance(grid, tri_verts, tri_element, elem_normal, vertex_radiance, 
     ss = side * side
     for i in prange(n):
         nrm = normals[i]
-        t, s = _frame(nrm)
+        t, s = tangent_frame(nrm)
         o = points[i] + off * nrm
         acc = np.zeros(3)
         for k in range(ss):

@@ -26,7 +26,7 @@ from daskrad.kernels.tolerances import SHADOW_SHORTEN
 
 
 @jit
-def _onb(n):
+def tangent_frame(n):
     """Two unit tangents completing ``n`` (Duff et al. 2017)."""
     sign = 1.0 if n[2] >= 0.0 else -1.0
     a = -1.0 / (sign + n[2])
@@ -99,7 +99,7 @@ def _radiance(grid, tri_normal, tri_rho, tri_ke, light_tris, light_cdf, light_ar
         r1, r2 = np.random.random(), np.random.random()
         phi = 2.0 * math.pi * r1
         sr = math.sqrt(r2)
-        ta, tb = _onb(n)
+        ta, tb = tangent_frame(n)
         d = (math.cos(phi) * sr) * ta + (math.sin(phi) * sr) * tb + math.sqrt(1.0 - r2) * n
         o = xo
     return L
