@@ -111,8 +111,12 @@ class Outputs:
     def publish(self, working: Path) -> None:
         """Swap the finished store ``working`` in for the earlier one (checked in :meth:`of`
         to be daskrad's)."""
-        if working == self.store:
+        working = Path(working).absolute()
+        if working == self.store.absolute():          # a resumed run solved in place
             return
+        if not is_store(working):
+            raise OptionError("the finished solution store is missing; the earlier results "
+                              "are kept", working)
         old = self.exr.with_name(f".{self.exr.stem}.zarr.old")
         if old.exists() and is_store(old):
             shutil.rmtree(old)
@@ -128,7 +132,7 @@ class Outputs:
     def discard(self, working: Path) -> None:
         """Remove the partial store of a run that failed (it made it; a stopped run keeps it
         for ``--resume``)."""
-        if working == self.partial and is_store(working):
+        if Path(working).absolute() == self.partial.absolute() and is_store(working):
             shutil.rmtree(working, ignore_errors=True)
 
     @contextlib.contextmanager

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import dataclasses
+import json
+import os
 import shutil
 import subprocess
 import sys
@@ -289,3 +291,27 @@ def test_a_dashboard_open_to_the_network_is_said(tmp_path, capsys):
     run(CORNELL, tmp_path / "d.exr", SMALL.replace(workers=2, dashboard="127.0.0.1:0"),
         progress=False)
     assert "dashboard listens" not in capsys.readouterr().err
+
+
+def test_a_resume_with_a_relative_output_keeps_its_store(tmp_path):
+    # a resumed run solves in its finished store, named relatively on the command line and
+    # absolutely inside: it must not be swapped out for itself (found trying the README)
+    small = ["--width", "16", "--height", "16", "--patch-size", "150", "--element-size",
+             "75", "--resolution", "64", "--spp", "1", "-q"]
+
+    def cli(*args):
+        return subprocess.run([sys.executable, "-m", "daskrad", "run", str(CORNELL), "-o",
+                               "c.exr", *small, *args], capture_output=True, text=True,
+                              timeout=300, cwd=tmp_path,
+                              env={**os.environ, "PYTHONPATH": str(REPO)})
+
+    first = cli("--tolerance", "1e-2")
+    assert first.returncode == 0, first.stderr
+    again = cli("--tolerance", "5e-3", "--resume")
+    assert again.returncode == 0, again.stderr
+    from daskrad.output import is_store
+
+    assert is_store(tmp_path / "c.zarr")
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == [".c.lock"]
+    report = json.loads((tmp_path / "c.json").read_text())
+    assert report["converged"] and report["unshot_rms_history"][-1]["relative_unshot_rms"] <= 5e-3
