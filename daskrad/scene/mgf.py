@@ -52,6 +52,7 @@ import numpy as np
 from daskrad import tolerances
 from daskrad.errors import DaskradWarning, SceneError
 from daskrad.scene import shapes as shp
+from daskrad.scene.files import read_text
 from daskrad.scene.polygons import faces_to_polygons
 
 #: A reflectance whose RGB reaches 1 (``rd 1``, or a colour brighter in one channel than its
@@ -219,17 +220,8 @@ def _number(token: str, what: str, err) -> float:
 
 def _entities(path: Path, err_path) -> list[tuple[int, list[str]]]:
     """``(line number, tokens)`` of every entity of one file (continuations joined)."""
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise SceneError("MGF file not found", err_path) from None
-    except IsADirectoryError:
-        raise SceneError("is a directory, not an MGF file", err_path) from None
-    except OSError as e:
-        raise SceneError(f"cannot read the MGF file: {e.strerror or e}", err_path) from None
-    if b"\x00" in data[:4096]:
-        raise SceneError("not a text MGF file (binary data)", err_path)
-    lines = data.decode("utf-8", errors="replace").replace("\r\n", "\n").replace("\r", "\n")
+    text = read_text(path, "MGF file", name=err_path)
+    lines = text.replace("\r\n", "\n").replace("\r", "\n")
     out, pending, start = [], [], 0
     for lineno, raw in enumerate(lines.split("\n"), start=1):
         if not pending:

@@ -18,14 +18,13 @@ The parser walks the text once (as trimesh's does); everything after that is vec
 
 from __future__ import annotations
 
-import os
-import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from daskrad.errors import SceneError
+from daskrad.scene.files import read_text
 
 #: Largest MTL file read (bytes). A material library holds a few lines per material: 64 MiB is
 #: hundreds of thousands of materials, and the bound stops an ``mtllib`` line naming a huge or
@@ -64,34 +63,9 @@ class MtlMaterial:
 
 
 def _read_text(path: Path, what: str, max_bytes: int | None = None) -> str:
-    """The text of an OBJ or MTL file; only a regular file (never a FIFO, a device such as
-    ``/dev/zero`` or a directory: reading those hangs or never ends), of at most ``max_bytes``
-    when given."""
-    try:
-        # stat before opening: opening a FIFO for reading blocks until a writer comes
-        st = os.stat(path)
-        if stat.S_ISDIR(st.st_mode):
-            raise SceneError(f"{what} is a directory, not a file", path)
-        if not stat.S_ISREG(st.st_mode):
-            raise SceneError(f"{what} is not a regular file (a device, FIFO or socket)", path)
-        if max_bytes is not None and st.st_size > max_bytes:
-            raise SceneError(f"{what} is too large ({st.st_size:,} bytes; at most "
-                             f"{max_bytes:,})", path)
-        with open(path, "rb") as f:
-            data = f.read() if max_bytes is None else f.read(max_bytes + 1)
-    except FileNotFoundError:
-        raise SceneError(f"{what} not found", path) from None
-    except IsADirectoryError:
-        raise SceneError(f"{what} is a directory, not a file", path) from None
-    except OSError as err:
-        raise SceneError(f"cannot read {what}: {err.strerror or err}", path) from None
-    if max_bytes is not None and len(data) > max_bytes:  # grew while being read
-        raise SceneError(f"{what} is too large (more than {max_bytes:,} bytes)", path)
-    if b"\x00" in data[:4096]:
-        raise SceneError(f"not a text {what} (binary data)", path)
-    # OBJ/MTL have no declared encoding; names are the only non-ASCII content
-    text = data.decode("utf-8", errors="replace")
-    # a backslash at the end of a line continues it (OBJ spec)
+    """The text of an OBJ or MTL file (:func:`daskrad.scene.files.read_text`), with a line
+    ending in a backslash continued on the next (OBJ spec)."""
+    text = read_text(path, what, max_bytes)
     return text.replace("\\\r\n", " ").replace("\\\n", " ")
 
 
