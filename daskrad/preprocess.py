@@ -23,7 +23,6 @@ from daskrad.mesh import (
     build_hierarchy,
     default_sizes,
     hierarchy_triangles,
-    one_sided,
     polygon_areas,
 )
 from daskrad.scene.types import Scene
@@ -86,7 +85,9 @@ def estimated_elements(scene: Scene, settings: Settings) -> int:
     """About how many elements ``settings.element_size`` makes of ``scene`` (total area over
     the element's area; exact for squares that tile their polygons)."""
     size = settings.element_size or default_sizes(scene)[1]
-    return int(math.ceil(float(polygon_areas(one_sided(scene)).sum()) / size**2))
+    area = polygon_areas(scene)
+    area = float(area.sum() + area[scene.two_sided].sum())   # a two-sided polygon twice
+    return int(math.ceil(area / size**2))
 
 
 def preprocess(scene: Scene, settings: Settings) -> Mesh:

@@ -483,18 +483,19 @@ def camera(scene: Scene, settings: Settings) -> Camera:
 
 
 def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
-            cam: Camera) -> RenderContext:
+            cam: Camera, split: tuple[np.ndarray, np.ndarray] | None = None) -> RenderContext:
     """The tile renderer's context for a solution.
 
     Vertex radiance is split into the part interpolated across elements (indirect light and
     the ambient term of an unconverged solution) and the direct part ``E + ρH``, exact at
     every vertex; T-vertices take both from their edge, so no seam shows. The per-pixel pass
     (eq. 9), Phong highlights and mirrors are switched on where the scene needs them
-    (:func:`perpixel_context`).
+    (:func:`perpixel_context`). ``split``: :func:`vertex_split` of ``light`` and ``sol`` when
+    the caller has it already.
     """
     mesh = light.mesh
     h, reflectance = mesh.hierarchy, mesh.reflectance
-    indirect, direct_v = vertex_split(light, sol)
+    indirect, direct_v = vertex_split(light, sol) if split is None else split
     ctx = RenderContext(grid=mesh.grid, tri_verts=mesh.tri_verts, tri_element=mesh.tri_element,
                         elem_normal=h.elem_normal, vertex_radiance=indirect + direct_v,
                         camera=cam, spp=settings.spp)
@@ -596,13 +597,14 @@ def image(scene: Scene, light: DirectLight, sol: Solution, settings: Settings, e
     if not (np.isfinite(sol.radiosity).all() and np.isfinite(sol.unshot).all()):
         raise SceneError("the radiosity solution is not finite (NaN or inf): emission or "
                          "light intensities too large for a float64", scene.path)
-    ctx = context(scene, light, sol, settings, cam or camera(scene, settings))
+    split = vertex_split(light, sol)
+    ctx = context(scene, light, sol, settings, cam or camera(scene, settings), split)
     out = pixels(ctx, executor)
     if not np.isfinite(out).all():
         raise SceneError("the image is not finite (NaN or inf radiance)", scene.path)
     return Image(pixels=out, context=ctx,
                  ambient=ambient(light.mesh.hierarchy, light.mesh.reflectance, sol.unshot),
-                 seconds=time.perf_counter() - t, vertex_direct=vertex_split(light, sol)[1])
+                 seconds=time.perf_counter() - t, vertex_direct=split[1])
 
 
 def pixels(ctx: RenderContext, executor=None) -> np.ndarray:

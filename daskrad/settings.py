@@ -111,8 +111,8 @@ class Settings:
                               f"have more than {MAX_IMAGE_PIXELS} pixels")
         integer("seed", 0)
         integer("checkpoint_every", 1)
-        if not _ADDRESS.match(str(self.dashboard)) or not 0 <= int(
-                _ADDRESS.match(str(self.dashboard)).group(1)) <= 65535:
+        address = _ADDRESS.match(str(self.dashboard))
+        if not address or not 0 <= int(address.group(1)) <= 65535:
             bad("dashboard", "must be HOST:PORT (port 0-65535)")
         if self.scheduler is not None and not re.match(r"^[a-z]+://\S+:\d{1,5}$",
                                                        str(self.scheduler)):

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from daskrad import direct, tolerances
-from daskrad.preprocess import one_sided, preprocess
+from daskrad.mesh import one_sided
+from daskrad.preprocess import preprocess
 from daskrad.run import solve_scene
 from daskrad.scene import box_scene, scene_from_arrays
 from daskrad.settings import Settings
