@@ -430,6 +430,7 @@ class Store:
         latest = int(latest)
         tol, maxit = float(self.settings.tolerance), int(self.settings.max_iterations)
         tried = []
+        tighter = False
         others = [x for x in range(SLOTS) if x != latest]
         cont = self.group.attrs.get("continue")
         if cont in others:                  # the last open checkpoint first, then the other
@@ -449,7 +450,13 @@ class Store:
                     return None
                 continue
             same = a.get("tolerance") == tol and a.get("max_iterations") == maxit
-            usable = same or (a.get("open") and tol <= a["tolerance"]
+            if slot == latest:
+                # only a smaller tolerance or more iterations than the last run's continue
+                # it (an older slot may hold an early state a looser run passes through;
+                # resuming to it would throw the store's answer away)
+                tighter = same or (tol <= a.get("tolerance", -1.0)
+                                   and maxit >= a.get("max_iterations", 1 << 62))
+            usable = same or (tighter and a.get("open") and tol <= a["tolerance"]
                               and _fits(a["iteration"], a["queued"], self.settings))
             tried.append(a)
             if not usable:
