@@ -418,7 +418,7 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
                      elem_shininess: np.ndarray, elem_mirror: np.ndarray,
                      lights: Lights | None, rdiff: float | None, mirror_depth: int,
                      diagonal: float, direct_context=None, tvertices=None,
-                     element_size: float | None = None) -> RenderContext:
+                     element_size: float | None = None, executor=None) -> RenderContext:
     """``ctx`` with the per-pixel pass and specular light switched on where they apply.
 
     ``elem_verts (E, 4) int`` are the elements' corners; ``vertex_direct (V, 3)`` is the
@@ -432,7 +432,7 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
     indirect light (:func:`_junction_gather`; ``ctx.vertex_radiance`` changes there, so a
     context may come back changed even when no pixel needs more than Gouraud;
     ``element_size``, the mesh's element size, sets how far a junction reaches, by default
-    1/32 of ``diagonal``).
+    1/32 of ``diagonal``; ``executor`` casts the gather's rays, in this thread when None).
     Arrays a scene does not need are left ``None``: no hard light, no qualifying element, no
     ``Ks`` and no mirror give back the plain context, so the tile tasks do exactly the work of
     a Gouraud image.
@@ -445,7 +445,7 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
         size = diagonal / 32.0 if element_size is None else element_size
         delta = _junction_gather(ctx, direct_context, tvertices, elem_verts, elem_reflectance,
                                  elem_emission, vertex_indirect, diagonal,
-                                 JUNCTION_REACH * size)
+                                 JUNCTION_REACH * size, executor)
         ctx = replace(ctx, vertex_radiance=ctx.vertex_radiance + delta)
         vertex_indirect = vertex_indirect + delta
     hard, vertex_hard = None, None
@@ -488,7 +488,8 @@ def camera(scene: Scene, settings: Settings) -> Camera:
 
 
 def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
-            cam: Camera, split: tuple[np.ndarray, np.ndarray] | None = None) -> RenderContext:
+            cam: Camera, split: tuple[np.ndarray, np.ndarray] | None = None,
+            executor=None) -> RenderContext:
     """The tile renderer's context for a solution.
 
     Vertex radiance is split into the part interpolated across elements (indirect light and
@@ -496,7 +497,7 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
     every vertex; T-vertices take both from their edge, so no seam shows. The per-pixel pass
     (eq. 9), Phong highlights and mirrors are switched on where the scene needs them
     (:func:`perpixel_context`). ``split``: :func:`vertex_split` of ``light`` and ``sol`` when
-    the caller has it already.
+    the caller has it already; ``executor`` casts the junction gather's rays.
     """
     mesh = light.mesh
     h, reflectance = mesh.hierarchy, mesh.reflectance
@@ -516,7 +517,7 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
         mirror_depth=settings.mirror_depth, diagonal=scene.diagonal,
         direct_context=light.context if light.irradiance is not None else None,
         tvertices=light.tvertices,
-        element_size=settings.element_size or default_sizes(scene)[1])
+        element_size=settings.element_size or default_sizes(scene)[1], executor=executor)
     return with_unshadowed(ctx, h)
 
 
@@ -604,7 +605,7 @@ def image(scene: Scene, light: DirectLight, sol: Solution, settings: Settings, e
         raise SceneError("the radiosity solution is not finite (NaN or inf): emission or "
                          "light intensities too large for a float64", scene.path)
     split = vertex_split(light, sol)
-    ctx = context(scene, light, sol, settings, cam or camera(scene, settings), split)
+    ctx = context(scene, light, sol, settings, cam or camera(scene, settings), split, executor)
     out = pixels(ctx, executor)
     if not np.isfinite(out).all():
         raise SceneError("the image is not finite (NaN or inf radiance)", scene.path)
@@ -662,16 +663,62 @@ JUNCTION_REACH = 0.64
 GATHER_SIDE = 32
 
 
+#: Junction vertices per ``gather-…`` task (~0.1–0.3 s each: 1,024 rays a vertex).
+GATHER_BATCH = 128
+
+
+@dataclass(frozen=True)
+class GatherContext:
+    """What a junction-gather task reads (:func:`gather_vertices`).
+
+    grid, tri_verts, tri_element, elem_normal, vertex_radiance
+        As :class:`RenderContext` (the radiance the solution shows, before the gather).
+    exclude : (E, 3) float64
+        Radiance taken off a hit on each element (its ``Ke`` when the direct pass lit the
+        vertices with the emitters, else 0).
+    points, normals : (n, 3) float64
+        The junction vertices' evaluation points and normals; ``seeds : (n,) int64`` their
+        vertex ids (the jitter is seeded per vertex, so any split gives the same bits).
+    offset : float
+        Ray offset (length); ``side``: ``side²`` rays per vertex.
+    """
+
+    grid: Grid
+    tri_verts: np.ndarray
+    tri_element: np.ndarray
+    elem_normal: np.ndarray
+    vertex_radiance: np.ndarray
+    exclude: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    seeds: np.ndarray
+    offset: float
+    side: int
+
+
+def gather_vertices(gctx: GatherContext, start: int, stop: int) -> np.ndarray:
+    """``(stop - start, 3) float64``: mean radiance seen from the junction vertices
+    ``[start, stop)`` of ``gctx`` (:func:`daskrad.kernels.gather.gather_radiance`)."""
+    from daskrad.kernels.gather import gather_radiance
+
+    return gather_radiance(gctx.grid, gctx.tri_verts, gctx.tri_element, gctx.elem_normal,
+                           gctx.vertex_radiance, gctx.exclude, gctx.points[start:stop],
+                           gctx.normals[start:stop], gctx.seeds[start:stop],
+                           float(gctx.offset), int(gctx.side))
+
+
 def _junction_gather(ctx: RenderContext, dctx, tvertices, elem_verts: np.ndarray,
                      elem_reflectance: np.ndarray, elem_emission: np.ndarray,
-                     vertex_indirect: np.ndarray, diagonal: float, reach: float) -> np.ndarray:
+                     vertex_indirect: np.ndarray, diagonal: float, reach: float,
+                     executor=None) -> np.ndarray:
     """``(V, 3)``: the change of vertex radiance when the indirect light of the vertices
     beside a junction is gathered (:mod:`daskrad.kernels.gather`) instead of averaged from
     their elements: ``ρ · mean(L)`` over cosine-distributed rays from the vertex, ``L`` the
     radiance the solution shows (Gouraud of ``ctx.vertex_radiance``) less the emitters'
     ``Ke`` when the direct pass lit the vertices with them (two-pass), minus the vertex's
-    current indirect radiance. T-vertices keep their resolved values (no seam)."""
-    from daskrad.kernels.gather import gather_radiance, near_surface
+    current indirect radiance. T-vertices keep their resolved values (no seam). The rays are
+    cast by ``executor.gather`` (threads or ``gather-…`` tasks) when given."""
+    from daskrad.kernels.gather import near_surface
 
     V = len(ctx.vertex_radiance)
     delta = np.zeros((V, 3))
@@ -691,10 +738,16 @@ def _junction_gather(ctx: RenderContext, dctx, tvertices, elem_verts: np.ndarray
         return delta
     exclude = (np.ascontiguousarray(elem_emission, dtype=np.float64)
                if len(dctx.emitter_corners) else np.zeros((len(elem_reflectance), 3)))
-    L = gather_radiance(ctx.grid, ctx.tri_verts, ctx.tri_element, ctx.elem_normal,
-                        np.ascontiguousarray(ctx.vertex_radiance), exclude,
-                        np.ascontiguousarray(pts[idx]), np.ascontiguousarray(nrm[idx]),
-                        idx.astype(np.int64), off, GATHER_SIDE)
+    gctx = GatherContext(grid=ctx.grid, tri_verts=ctx.tri_verts, tri_element=ctx.tri_element,
+                         elem_normal=ctx.elem_normal,
+                         vertex_radiance=np.ascontiguousarray(ctx.vertex_radiance),
+                         exclude=exclude, points=np.ascontiguousarray(pts[idx]),
+                         normals=np.ascontiguousarray(nrm[idx]), seeds=idx.astype(np.int64),
+                         offset=off, side=GATHER_SIDE)
+    ranges = direct.batches(0, len(idx), GATHER_BATCH)
+    parts = (executor.gather(gctx, ranges) if executor is not None
+             else [gather_vertices(gctx, a, b) for a, b in ranges])
+    L = np.concatenate(parts)
     owner = np.broadcast_to(np.arange(len(elem_verts))[:, None], elem_verts.shape)
     rho = np.zeros((V, 3))
     rho[elem_verts[elem_verts >= 0]] = elem_reflectance[owner[elem_verts >= 0]]

@@ -4,7 +4,8 @@ run as named futures on a cluster (docs/design.md §4).
 Futures carry ids and ranges only; the geometry goes once into the store
 (:meth:`Store.put_context`) and each worker caches it (:mod:`daskrad.distributed.worker`).
 Keys are ``formfactor-<generation>-<batch>-<part>-<run>``,
-``direct-<generation>-<n>-<start>-<run>`` and ``tile-<generation>-<n>-<run>``: the dashboard
+``direct-<generation>-<n>-<start>-<run>``, ``gather-<generation>-<n>-<start>-<run>`` and
+``tile-<generation>-<n>-<run>``: the dashboard
 groups them by their first word; the 8-hex run token keeps two runs on one cluster (or two
 runs of one test session) from sharing a key, since a key still held by the scheduler returns
 its old result (docs/stack.md).
@@ -173,6 +174,20 @@ class DaskExecutor:
             for n, (a, b) in enumerate(ranges)]
         self.stats["tasks"] += len(futures)
         return self._gather("direct light", futures)
+
+    def gather(self, ctx: render.GatherContext, ranges: list[tuple[int, int]]
+               ) -> list[np.ndarray]:
+        """The junction gather over ranges of its vertices as ``gather-<generation>-<n>``
+        futures, in order."""
+        generation = self.geometry[0] if self.geometry else 0
+        token = self.store.put_context("gather", ctx)
+        self._probe("gather", token)
+        futures = [
+            self.client.submit(worker.gather_task, self.store.path, generation, token, a, b,
+                               key=f"gather-{generation}-{n}-{a}-{self.run}", pure=False)
+            for n, (a, b) in enumerate(ranges)]
+        self.stats["tasks"] += len(futures)
+        return self._gather("junction gather", futures)
 
     def publish(self, key: str, value) -> None:
         """Progress for the ``/daskrad`` page (scheduler metadata, small JSON values)."""

@@ -595,11 +595,12 @@ def _known_types() -> dict:
     from daskrad.direct import DirectContext, Lights
     from daskrad.formfactor.shooting import ShootContext
     from daskrad.kernels.grid import Grid
-    from daskrad.render import RenderContext
+    from daskrad.render import GatherContext, RenderContext
     from daskrad.scene.types import Camera
 
     return {f"{t.__module__}:{t.__qualname__}": t
-            for t in (DirectContext, Lights, ShootContext, Grid, RenderContext, Camera)}
+            for t in (DirectContext, Lights, ShootContext, Grid, RenderContext, GatherContext,
+                      Camera)}
 
 
 def _encode(obj, prefix: str, arrays: dict):

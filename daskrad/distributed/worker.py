@@ -82,6 +82,12 @@ def direct_task(path: str, generation: int, token: str, start: int, stop: int) -
     return direct.direct_vertices(context(path, "direct", generation, token), start, stop)
 
 
+def gather_task(path: str, generation: int, token: str, start: int, stop: int) -> np.ndarray:
+    """The junction gather at its vertices ``[start, stop)``
+    (:func:`daskrad.render.gather_vertices`)."""
+    return render.gather_vertices(context(path, "gather", generation, token), start, stop)
+
+
 def probe(path: str, kind: str, token: str) -> str | None:
     """Run on every worker before the first task: None if the store is readable here,
     else why not (the client turns it into one clear error)."""

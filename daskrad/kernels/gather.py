@@ -49,7 +49,7 @@ def near_surface(grid, points, normals, off, reach, side):
     return out
 
 
-@jit_parallel
+@jit
 def gather_radiance(grid, tri_verts, tri_element, elem_normal, vertex_radiance, elem_exclude,
                     points, normals, seeds, off, side):
     """``(n, 3) float64``: the mean radiance seen from each point over ``side²`` stratified,
@@ -64,11 +64,14 @@ def gather_radiance(grid, tri_verts, tri_element, elem_normal, vertex_radiance, 
     elem_exclude : (E, 3) float64
         Radiance taken off a hit on that element (its emission, already counted as direct).
     points, normals : (n, 3) float64; seeds : (n,) int64 jitter seeds; off : the ray offset.
+
+    Serial: the callers split the points into ranges run side by side (threads in-process,
+    ``gather-…`` tasks on a cluster); each point's sum is the same whatever the split.
     """
     n = points.shape[0]
     out = np.zeros((n, 3))
     ss = side * side
-    for i in prange(n):
+    for i in range(n):
         nrm = normals[i]
         t, s = tangent_frame(nrm)
         o = points[i] + off * nrm
