@@ -110,7 +110,8 @@ class InProcess:
 
     def gather(self, ctx: render.GatherContext, ranges: list[tuple[int, int]]
                ) -> list[np.ndarray]:
-        """The junction gather over ranges of its vertices (:func:`daskrad.render.gather_vertices`)."""
+        """The junction gather over ranges of its vertices
+        (:func:`daskrad.render.gather_vertices`)."""
         return self._map(lambda r: render.gather_vertices(ctx, r[0], r[1]), ranges)
 
     def publish(self, key: str, value) -> None:

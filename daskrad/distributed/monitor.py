@@ -6,8 +6,8 @@ may decide which states are checkpointed without touching the result: a resume f
 checkpoint applies exactly the batches the uninterrupted run applied (the state holds the
 queued batches), so the bits are the same. The last state a run with a smaller tolerance or
 more iterations could continue from (the one before the final batch) is kept in memory and
-written at the finish, so a continued run redoes at most one batch. Progress and the preview image are throttled by wall
-time too: they are only watched, never read back.
+written at the finish, so a continued run redoes at most one batch. Progress and the preview
+image are throttled by wall time too: they are only watched, never read back.
 """
 
 from __future__ import annotations
