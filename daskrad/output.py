@@ -175,8 +175,10 @@ def unlit_warning(scene: Scene, light: DirectLight, sol: Solution) -> str | None
 
 def report(scene: Scene, outputs: Outputs, settings: Settings, light: DirectLight,
            sol: Solution, image: Image, *, workers: int, seconds: dict,
-           warnings: list[str]) -> dict:
-    """The run report (written as ``OUT.json``): counts, convergence, timings, settings."""
+           warnings: list[str], memory: dict | None = None) -> dict:
+    """The run report (written as ``OUT.json``): counts, convergence, timings, settings;
+    ``memory``: peak memory of the client and the workers, MiB, and the row caches' use
+    (the executor's ``memory()``)."""
     from daskrad.mesh import default_sizes
     from daskrad.mesh.refine import MIN_SIZE_DIVISOR
 
@@ -213,6 +215,7 @@ def report(scene: Scene, outputs: Outputs, settings: Settings, light: DirectLigh
         "ambient": image.ambient,
         "seconds": seconds,
         "workers": workers,
+        "memory": memory or {},
         "settings": settings.as_dict(),
         "image": {"width": image.camera.width, "height": image.camera.height,
                   "mean_radiance": image.pixels.reshape(-1, 3).mean(axis=0)},

@@ -76,6 +76,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         image = render.image(scene, light, sol, settings, ex, camera)             # 4
         store.finish(image)
         seconds["render"], t = time.perf_counter() - t, time.perf_counter()
+        memory = ex.memory()
     except Exception as err:
         if not (resume or interrupted(err)):    # a stopped run keeps its checkpoint
             outputs.discard(Path(store.path))
@@ -89,7 +90,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
     warnings = [*scene.warnings, *late]     # the loader's were printed as it read
     seconds["total"] = time.perf_counter() - start
     report = output.report(scene, outputs, settings, light, sol, image, workers=ex.workers,
-                           seconds=seconds, warnings=warnings)
+                           seconds=seconds, warnings=warnings, memory=memory)
     outputs.publish(Path(store.path))
     output.write(outputs, image, report, settings.exposure)                       # 5
     if replaced and not resume:

@@ -80,6 +80,11 @@ def test_same_bits_for_any_number_of_workers(reference, tmp_path, cluster_client
         report = run(CORNELL, out, settings, progress=False)
     assert report["workers"] == workers
     assert_same_run(reference[case], out)
+    # the report gives each worker's peak memory and its row cache, within its budget
+    memory = report["memory"]
+    assert len(memory["workers"]) == workers and memory["client_peak_mib"] > 0
+    for w in memory["workers"]:
+        assert w["peak_mib"] > 0 and 0 < w["row_cache_mib"] <= w["row_cache_limit_mib"]
 
 
 def test_worker_cache_loads_each_context_once_per_process(cluster_client, tmp_path):

@@ -168,6 +168,21 @@ def test_row_cache_gives_the_bits_of_a_recomputation_within_its_budget():
     assert small.hits == 3
 
 
+def test_row_cache_budget_holds_every_row_when_they_fit_else_a_share_of_memory():
+    # a row has at most E nonzeros of 12 bytes: P · E · 12 bytes hold every row; a process
+    # with less memory than 4× that gives the cache a quarter of its memory
+    h, ctx = _context(box_scene(emission_per_face=0.1))
+    everything = 12 * h.n_patches * h.n_elements
+    assert shooting.row_cache_bytes(ctx, 2**40) == everything
+    assert shooting.row_cache_bytes(ctx, everything) == everything // 4
+    # and the rows of a whole solve fit in the budget "everything" gives: all kept
+    cache = shooting.RowCache(shooting.row_cache_bytes(ctx, 2**40))
+    rows = shooting.shoot_rows(ctx, np.arange(h.n_patches), cache)
+    assert cache.nbytes == sum(a.nbytes + f.nbytes for a, f in rows) <= everything
+    shooting.shoot_rows(ctx, np.arange(h.n_patches), cache)
+    assert (cache.misses, cache.hits) == (h.n_patches, h.n_patches)
+
+
 def test_points_under_a_block_standing_on_the_shooter_are_dropped():
     # a floor (one patch, facing +z) with a closed block standing on it (four sides and a top,
     # facing out, no bottom), and a card high above: sample points of the floor under the block

@@ -24,6 +24,7 @@ import numpy as np
 
 from daskrad import render
 from daskrad.distributed import worker
+from daskrad.distributed.memory import peak_mib
 from daskrad.distributed.store import Store
 from daskrad.errors import OptionError
 from daskrad.formfactor import shooting
@@ -188,6 +189,14 @@ class DaskExecutor:
             for n, (a, b) in enumerate(ranges)]
         self.stats["tasks"] += len(futures)
         return self._gather("junction gather", futures)
+
+    def memory(self) -> dict:
+        """Peak memory of the client and of each worker (MiB), and each worker's row cache."""
+        states = self.client.run(worker.state)
+        return {"client_peak_mib": peak_mib(),
+                "workers": [{k: states[a][k] for k in ("peak_mib", "row_cache_mib",
+                                                       "row_cache_limit_mib")}
+                            for a in sorted(states)]}
 
     def publish(self, key: str, value) -> None:
         """Progress for the ``/daskrad`` page (scheduler metadata, small JSON values)."""

@@ -11,6 +11,7 @@ Both executors expose the same calls, so the pipeline is written once:
   :func:`daskrad.direct.direct_vertices`, one per vertex range, in order;
 - ``gather(gather_ctx, ranges)`` → list of the junction gather's radiances of
   :func:`daskrad.render.gather_vertices`, one per range of junction vertices, in order;
+- ``memory()`` → peak memory of the client and of every worker, and the row caches' use;
 - ``publish(key, value)``: progress for the dashboard (a no-op here);
 - ``close()``.
 
@@ -31,6 +32,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 import numpy as np
 
 from daskrad import direct, render
+from daskrad.distributed.memory import peak_mib, physical_memory
 from daskrad.formfactor import shooting
 
 
@@ -90,7 +92,8 @@ class InProcess:
 
     def set_geometry(self, shoot_ctx: shooting.ShootContext, generation: int = 0) -> None:
         self.shoot_ctx = shoot_ctx
-        self.rows = shooting.RowCache()
+        self.rows = shooting.RowCache(shooting.row_cache_bytes(shoot_ctx,
+                                                               physical_memory()))
 
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Done | _Rows:
         if self.threads == 1:
@@ -113,6 +116,13 @@ class InProcess:
         """The junction gather over ranges of its vertices
         (:func:`daskrad.render.gather_vertices`)."""
         return self._map(lambda r: render.gather_vertices(ctx, r[0], r[1]), ranges)
+
+    def memory(self) -> dict:
+        """Peak memory of this process (MiB) and the row cache's use and budget (no
+        workers: this process is the one that computes)."""
+        return {"client_peak_mib": peak_mib(), "workers": [],
+                "row_cache_mib": self.rows.nbytes / 2**20,
+                "row_cache_limit_mib": self.rows.max_bytes / 2**20}
 
     def publish(self, key: str, value) -> None:
         """No dashboard in-process: progress shows in the terminal only."""

@@ -17,6 +17,7 @@ from collections import OrderedDict
 import numpy as np
 
 from daskrad import render
+from daskrad.distributed.memory import peak_mib, physical_memory
 from daskrad.distributed.store import load_context
 from daskrad.formfactor import shooting
 
@@ -52,13 +53,26 @@ def shoot_task(path: str, generation: int, token: str, patch_ids: np.ndarray) ->
     (:func:`daskrad.formfactor.shooting.shoot_rows`), with the rows this process already
     computed for that geometry."""
     key = (path, generation, token)
+    ctx = context(path, "shoot", generation, token)
     with _lock:
         rows = _rows.get(key)
         if rows is None:
-            rows = _rows[key] = shooting.RowCache()
+            rows = _rows[key] = shooting.RowCache(shooting.row_cache_bytes(ctx, memory()))
             while len(_rows) > 1:           # only the current geometry shoots
                 _rows.popitem(last=False)
-    return shooting.shoot_rows(context(path, "shoot", generation, token), patch_ids, rows)
+    return shooting.shoot_rows(ctx, patch_ids, rows)
+
+
+def memory() -> int:
+    """Bytes this worker may use: its Dask memory limit, else the machine's memory."""
+    try:
+        from distributed import get_worker
+
+        limit = get_worker().memory_manager.memory_limit
+    except (ImportError, ValueError, AttributeError):
+        limit = None
+    return int(limit) if limit else physical_memory()
+
 
 
 def forget_rows() -> None:
@@ -102,4 +116,7 @@ def state() -> dict:
     """This process's pid and cache statistics (tests and benchmarks call it via client.run)."""
     rows = next(iter(_rows.values()), None)
     return {"pid": os.getpid(), "loads": loads, "cached": len(_cache),
-            "row_hits": rows.hits if rows else 0, "row_misses": rows.misses if rows else 0}
+            "row_hits": rows.hits if rows else 0, "row_misses": rows.misses if rows else 0,
+            "row_cache_mib": rows.nbytes / 2**20 if rows else 0.0,
+            "row_cache_limit_mib": rows.max_bytes / 2**20 if rows else 0.0,
+            "peak_mib": peak_mib()}

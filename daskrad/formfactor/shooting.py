@@ -350,8 +350,23 @@ def receiver_average(ctx: ShootContext, p: int, ids: np.ndarray) -> np.ndarray:
     return F
 
 
-#: Bytes of finished rows a process keeps for re-shots (:class:`RowCache`).
+#: Bytes of finished rows a process keeps for re-shots when nothing sizes it
+#: (:class:`RowCache`; the pipeline sizes it with :func:`row_cache_bytes`).
 ROW_CACHE_BYTES = 256 * 2**20
+#: Share of a process's memory the row cache may take: the rest holds the geometry, the
+#: context copies and a task's dense ``(S, E)`` buffers.
+ROW_CACHE_SHARE = 0.25
+#: Bytes a kept row costs per nonzero factor (an int32 element id and a float64 factor).
+ROW_BYTES_PER_FACTOR = 12
+
+
+def row_cache_bytes(ctx: ShootContext, memory: int) -> int:
+    """The row cache's budget for ``ctx`` in a process with ``memory`` bytes: every row when
+    they fit (a row has at most ``E`` nonzeros, so ``12 · P · E`` bytes bound them all: the
+    Cornell box's 309 × 7,295 are 27 MB), else ``ROW_CACHE_SHARE`` of the memory. Rows beyond
+    it are computed again when their patch shoots again (the same bits, more time)."""
+    everything = ROW_BYTES_PER_FACTOR * len(ctx.patch_area) * len(ctx.elem_area)
+    return int(max(0, min(everything, ROW_CACHE_SHARE * memory)))
 
 
 class RowCache:
