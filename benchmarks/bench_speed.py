@@ -22,8 +22,8 @@ Four tables, one JSON (``benchmarks/results/speed.json``):
 
 ``python -m benchmarks.bench_speed [--quick] [--scene PATH ...] [--no-cold]``; ``--quick`` is
 a smoke run (one setting, one sample count, no cold start, a small scene for the workers).
-Times are wall seconds, best of ``REPEATS``; on a machine shared with other work they are
-upper bounds, read them as ratios.
+Times are wall seconds, medians of ``REPEATS`` (one run where said); on a machine shared with
+other work read them as ratios measured in the same run.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import os
 import re
 import shutil
@@ -56,7 +57,7 @@ CORNELL = ROOT / "scenes" / "cornell_box.obj"
 LIT_ROOM = ROOT / "scenes" / "lit_room.obj"
 SIZE = 128
 REFERENCE_SPP = 2048
-REPEATS = 2
+REPEATS = 3
 
 #: daskrad settings timed against their error (Settings fields; the image is SIZE × SIZE).
 CONFIGS = {
@@ -91,19 +92,19 @@ def lit_room_reference() -> tuple[np.ndarray, float]:
 
 
 def timed_run(scene: Path, settings: Settings, repeats: int = REPEATS) -> dict:
-    """Best-of-``repeats`` whole run of ``scene`` (fresh process state but warm kernels),
-    with the report of the fastest and its image."""
-    best = None
+    """The median of ``repeats`` whole runs of ``scene`` (warm kernels), with the report and
+    image of the median run (every run gives the same bits; the report's step times are
+    that run's)."""
+    runs = []
     with tempfile.TemporaryDirectory(prefix="daskrad-speed-") as tmp:
         out = Path(tmp) / "x.exr"
         for _ in range(repeats):
             t = time.perf_counter()
             report = run(scene, out, settings, progress=False)
-            seconds = time.perf_counter() - t
-            if best is None or seconds < best["seconds"]:
-                best = {"seconds": seconds, "report": report,
-                        "image": read_exr(out).astype(np.float64)}
-    return best
+            runs.append({"seconds": time.perf_counter() - t, "report": report,
+                         "image": read_exr(out).astype(np.float64)})
+    runs.sort(key=lambda r: r["seconds"])
+    return runs[(len(runs) - 1) // 2]
 
 
 def time_vs_error(scene: Path, ref: np.ndarray, configs: dict, spps: tuple) -> list[dict]:
@@ -119,14 +120,13 @@ def time_vs_error(scene: Path, ref: np.ndarray, configs: dict, spps: tuple) -> l
     cam = dataclasses.replace(loaded.camera, width=SIZE, height=SIZE)
     path_trace(loaded, dataclasses.replace(cam, width=8, height=8), spp=1, seed=7)  # compile
     for spp in spps:
-        best, img = None, None
+        times, img = [], None
         for _ in range(REPEATS if spp < 256 else 1):      # long ones once: noise is small there
             t = time.perf_counter()
             img = path_trace(loaded, cam, spp=spp, seed=7)
-            seconds = time.perf_counter() - t
-            best = seconds if best is None else min(best, seconds)
-        rows.append({"renderer": "path tracer", "config": f"{spp} spp", "seconds": best,
-                     **errors(img, ref)})
+            times.append(time.perf_counter() - t)
+        rows.append({"renderer": "path tracer", "config": f"{spp} spp",
+                     "seconds": float(np.median(times)), **errors(img, ref)})
     return rows
 
 
@@ -178,17 +178,22 @@ def workers(scenes: list[Path], element_size: float | None, max_iterations: int 
     rows = []
     for scene in scenes:
         for n in WORKERS:
-            opts = {"workers": n}
+            opts = {"workers": n, "dashboard": "127.0.0.1:0"}
             if element_size is not None:
                 opts["element_size"] = element_size
             if max_iterations is not None:
                 opts["max_iterations"] = max_iterations
             r = timed_run(scene, Settings(**opts), repeats=1)
             rep = r["report"]
+            mem = rep.get("memory", {})
+            # a worker's peak (its process is the run's own); the in-process run's peak
+            # would be this benchmark process's, earlier runs included: not shown
+            peak = max([w["peak_mib"] for w in mem.get("workers", [])], default=math.nan)
             rows.append({"scene": scene.name, "workers": n, "seconds": r["seconds"],
                          "elements": rep["counts"]["elements"], "shots": rep["iterations"],
-                         "converged": rep["converged"], **{f"{k} s": v for k, v in
-                                                          rep["seconds"].items()}})
+                         "converged": rep["converged"], "peak MiB": peak,
+                         "worker peaks MiB": [w["peak_mib"] for w in mem.get("workers", [])],
+                         **{f"{k} s": v for k, v in rep["seconds"].items()}})
     for row in rows:
         base = next(r for r in rows if r["scene"] == row["scene"] and r["workers"] == 1)
         row["speed-up vs 1 worker"] = base["seconds"] / row["seconds"]
@@ -245,11 +250,11 @@ def main(argv: list[str] | None = None) -> dict:
     result["workers"] = wrows
     print("\nWhole runs by --workers (0: in-process threads; LocalCluster start included)")
     print(f"{'scene':<20}{'workers':>8}{'elements':>10}{'shots':>7}{'seconds':>9}{'direct':>8}"
-          f"{'solve':>8}{'render':>8}{'vs 1':>7}")
+          f"{'solve':>8}{'render':>8}{'vs 1':>7}{'worker MiB':>11}")
     for r in wrows:
         print(f"{r['scene']:<20}{r['workers']:>8}{r['elements']:>10}{r['shots']:>7}"
               f"{r['seconds']:>9.2f}{r['direct s']:>8.2f}{r['solve s']:>8.2f}"
-              f"{r['render s']:>8.2f}{r['speed-up vs 1 worker']:>7.2f}")
+              f"{r['render s']:>8.2f}{r['speed-up vs 1 worker']:>7.2f}{r['peak MiB']:>11.0f}")
     if not quick:
         RESULTS.mkdir(exist_ok=True)
         (RESULTS / "speed.json").write_text(json.dumps(result, indent=2) + "\n")
