@@ -188,7 +188,7 @@ class DaskExecutor:
                                key=f"gather-{generation}-{n}-{a}-{self.run}", pure=False)
             for n, (a, b) in enumerate(ranges)]
         self.stats["tasks"] += len(futures)
-        return self._gather("junction gather", futures)
+        return self._gather("rendering", futures, "junction gather: ")
 
     def memory(self) -> dict:
         """Peak memory of the client and of each worker (MiB), and each worker's row cache."""
@@ -213,14 +213,15 @@ class DaskExecutor:
         self.publish("phase", {"phase": name, "fraction": round(float(fraction), 4),
                                "detail": detail})
 
-    def _gather(self, name: str, futures: list) -> list:
-        """The futures' results in order, publishing the phase ``name`` as they complete."""
+    def _gather(self, name: str, futures: list, what: str = "") -> list:
+        """The futures' results in order, publishing the phase ``name`` as they complete
+        (``what`` heads the detail: a phase may run several kinds of task)."""
         from distributed import as_completed
 
         total = len(futures)
-        self.phase(name, 0.0, f"0 of {total} tasks", force=True)
+        self.phase(name, 0.0, f"{what}0 of {total} tasks", force=True)
         for n, _ in enumerate(as_completed(futures), 1):
-            self.phase(name, n / total, f"{n} of {total} tasks", force=n == total)
+            self.phase(name, n / total, f"{what}{n} of {total} tasks", force=n == total)
         return self.client.gather(futures)
 
     def close(self) -> None:
