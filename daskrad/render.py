@@ -661,6 +661,12 @@ def _hard_part(dctx, tvertices, elem_verts: np.ndarray, elem_reflectance: np.nda
 #: 0.0765 to 0.0766 at size 15 (the default size keeps its bits).
 JUNCTION_REACH = 0.64
 GATHER_SIDE = 32
+#: Correction passes after the first gather: each gathers the change the previous pass made
+#: (over ``(GATHER_SIDE / 2)²`` rays: that change lies on the near surfaces, which fill much of
+#: the hemisphere), so the two sides of a junction see each other's gathered light. Closed
+#: Cornell box with a point light: the RMS change falls 3.9e-3, 1.1e-3, 5.7e-4 over passes
+#: 1–3; the floor row at the short block's foot goes +14 % → +1 % against the path tracer.
+GATHER_PASSES = 2
 
 
 #: Junction vertices per ``gather-…`` task (~0.1–0.3 s each: 1,024 rays a vertex).
@@ -717,7 +723,23 @@ def _junction_gather(ctx: RenderContext, dctx, tvertices, elem_verts: np.ndarray
     radiance the solution shows (Gouraud of ``ctx.vertex_radiance``) less the emitters'
     ``Ke`` when the direct pass lit the vertices with them (two-pass), minus the vertex's
     current indirect radiance. T-vertices keep their resolved values (no seam). The rays are
-    cast by ``executor.gather`` (threads or ``gather-…`` tasks) when given."""
+    cast by ``executor.gather`` (threads or ``gather-…`` tasks) when given.
+
+    Which vertices: those beside a junction (within ``reach``) and the other corners of every
+    element with such a vertex. The elements along a junction have the wrong radiosity: a
+    shooting patch gives every receiver its *average* radiosity, while a receiver beside the
+    junction sees mostly the patch's part at the junction, darker than its average (the floor
+    patch in front of a block lights the block's foot with the light of its far, brighter
+    edge: closed Cornell box with a point light, the short block's shadowed foot elements
+    60 % too bright, the floor's in front of it 18 %). A corner one element away from the
+    junction averages those elements, and Gouraud interpolation carries their error across
+    the whole element; gathered, the element is interpolated between gathered corners only.
+
+    The first pass is then corrected :data:`GATHER_PASSES` times by gathering the change the
+    previous pass made (the gather is linear in the radiance seen): the two sides of a
+    junction (floor and block face) light each other, and the first pass saw both with their
+    averaged values.
+    """
     from daskrad.kernels.gather import near_surface
 
     V = len(ctx.vertex_radiance)
@@ -733,7 +755,14 @@ def _junction_gather(ctx: RenderContext, dctx, tvertices, elem_verts: np.ndarray
         return delta
     off = float(dctx.offset)
     near = near_surface(ctx.grid, pts[cand], nrm[cand], off, reach, 4)
-    idx = cand[near]
+    beside = np.zeros(V, bool)
+    beside[cand[near]] = True
+    # ... and the other corners of the elements with such a corner
+    valid = elem_verts >= 0
+    touching = (beside[np.where(valid, elem_verts, 0)] & valid).any(axis=1)
+    gathered = np.zeros(V, bool)
+    gathered[elem_verts[touching][valid[touching]]] = True
+    idx = np.flatnonzero(gathered & used)
     if len(idx) == 0:
         return delta
     exclude = (np.ascontiguousarray(elem_emission, dtype=np.float64)
@@ -745,11 +774,25 @@ def _junction_gather(ctx: RenderContext, dctx, tvertices, elem_verts: np.ndarray
                          normals=np.ascontiguousarray(nrm[idx]), seeds=idx.astype(np.int64),
                          offset=off, side=GATHER_SIDE)
     ranges = direct.batches(0, len(idx), GATHER_BATCH)
-    parts = (executor.gather(gctx, ranges) if executor is not None
-             else [gather_vertices(gctx, a, b) for a, b in ranges])
-    L = np.concatenate(parts)
+
+    def gather(g):
+        parts = (executor.gather(g, ranges) if executor is not None
+                 else [gather_vertices(g, a, b) for a, b in ranges])
+        return np.concatenate(parts)
+
+    L = gather(gctx)
     owner = np.broadcast_to(np.arange(len(elem_verts))[:, None], elem_verts.shape)
     rho = np.zeros((V, 3))
-    rho[elem_verts[elem_verts >= 0]] = elem_reflectance[owner[elem_verts >= 0]]
+    rho[elem_verts[valid]] = elem_reflectance[owner[valid]]
     delta[idx] = rho[idx] * L - vertex_indirect[idx]
+    change = delta
+    for k in range(1, GATHER_PASSES + 1):
+        # the light the last pass's change sends to the gathered vertices (a change holds no
+        # emission); new jitter seeds per pass, seeded per vertex as the first pass
+        change_at = gather(replace(gctx, vertex_radiance=np.ascontiguousarray(change),
+                                   exclude=np.zeros_like(exclude), seeds=idx + k * V,
+                                   side=GATHER_SIDE // 2))
+        change = np.zeros((V, 3))
+        change[idx] = rho[idx] * change_at
+        delta = delta + change
     return delta

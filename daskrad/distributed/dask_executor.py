@@ -179,13 +179,15 @@ class DaskExecutor:
     def gather(self, ctx: render.GatherContext, ranges: list[tuple[int, int]]
                ) -> list[np.ndarray]:
         """The junction gather over ranges of its vertices as ``gather-<generation>-<n>``
-        futures, in order."""
+        futures, in order. The context's token is in the key: a render gathers several times
+        (the correction passes) over the same ranges."""
         generation = self.geometry[0] if self.geometry else 0
         token = self.store.put_context("gather", ctx)
         self._probe("gather", token)
         futures = [
             self.client.submit(worker.gather_task, self.store.path, generation, token, a, b,
-                               key=f"gather-{generation}-{n}-{a}-{self.run}", pure=False)
+                               key=f"gather-{generation}-{n}-{a}-{token}-{self.run}",
+                               pure=False)
             for n, (a, b) in enumerate(ranges)]
         self.stats["tasks"] += len(futures)
         return self._gather("rendering", futures, "junction gather: ")
