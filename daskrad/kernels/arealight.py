@@ -351,6 +351,14 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
             near = zbuf[idx]
             zbuf[idx] = near / (1.0 - off * near) if off * near < 1.0 else np.inf
     # ---- the occluders, two-sided: oriented towards the eye
+    # A light pixel once hidden stays hidden (an occluder only ever sets item 1), so the
+    # first still-visible pixel ``first`` only moves forward: when it runs off the buffer
+    # every light pixel is hidden, V = 0 exactly whatever the remaining candidates would
+    # draw, and they are skipped (a wholly hidden light, most vertex-light pairs of a scene
+    # with many luminaires, stops after its first few occluders).
+    first = 0
+    while first < r * r and item[first] != 0:
+        first += 1
     tris = grid.triangles
     ev[0, 3] = -1
     for s in range(n_c):
@@ -395,10 +403,14 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
         nly = t2x * gx + t2y * gy + t2z * gz
         nlz = n[0] * gx + n[1] * gy + n[2] * gz
         da, db, dc, de = depth_coefficients(False, qx, qy, qz, m, nlx, nly, nlz, c)
-        fill_polygon(xs, ys, mm, 1, xc, yc, r, r, x0, inv_px, y0, inv_py, mask,
-                     da, db, dc, de, xcross, cnt, item, zbuf)
+        if fill_polygon(xs, ys, mm, 1, xc, yc, r, r, x0, inv_px, y0, inv_py, mask,
+                        da, db, dc, de, xcross, cnt, item, zbuf) > 0:
+            while first < r * r and item[first] != 0:
+                first += 1
+            if first == r * r:
+                return 0.0, n_c
     n_vis = 0
-    for idx in range(r * r):
+    for idx in range(first, r * r):
         if item[idx] == 0:
             n_vis += 1
     return n_vis / n_light, n_c
