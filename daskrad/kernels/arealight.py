@@ -371,12 +371,13 @@ def _light_window(ex, ey, ez, n, corners, count, en, hz, r, cos_thr, tab, lx, ly
 @jit
 def _occlude(grid, ex, ey, ez, n, cand, s0, s1, hz, r, cos_thr, tab, lx, ly, lz, ev, enrm,
              eoff, scr, qclip, xs, ys, xcross, cnt, item, zbuf, mask, xc, yc, x0, inv_px, y0,
-             inv_py, first):
+             inv_py, first, stop):
     """Step 3 for the occluders ``cand[s0:s1]``: each, oriented towards the eye, hides the
     light's pixels it covers nearer than the light.
 
     ``first`` is the first light pixel still visible (``item`` 0) before them; returns it
-    after them, ``r²`` when every light pixel is hidden (the rest are then skipped). A hidden
+    after them, ``r²`` when every light pixel is hidden (the rest are then skipped when
+    ``stop``). A hidden
     pixel never becomes visible again (an occluder only ever sets ``item`` 1), so ``first``
     only moves forward and the set of hidden pixels does not depend on the order occluders
     are drawn in.
@@ -439,7 +440,7 @@ def _occlude(grid, ex, ey, ez, n, cand, s0, s1, hz, r, cos_thr, tab, lx, ly, lz,
                         da, db, dc, de, xcross, cnt, item, zbuf) > 0:
             while first < r * r and item[first] != 0:
                 first += 1
-            if first == r * r:
+            if stop and first == r * r:
                 return first
     return first
 
@@ -447,7 +448,7 @@ def _occlude(grid, ex, ey, ez, n, cand, s0, s1, hz, r, cos_thr, tab, lx, ly, lz,
 @jit
 def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_thr, tab,
                      planes, stamp, sid, cand, lx, ly, lz, ev, enrm, eoff, scr, qclip, xs, ys,
-                     xcross, cnt, item, zbuf, mask, xc, yc):
+                     xcross, cnt, item, zbuf, mask, xc, yc, slabs):
     """``(V, n_candidates)``: the visible fraction of one light from ``p`` (module docstring).
 
     ``corners (count, 3)`` is the light, ``en (3,)`` its unit emitting normal (``p`` must lie
@@ -456,6 +457,8 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
     The rest are scratch buffers sized by :func:`area_irradiance_stats`; ``sid`` must differ
     from every value in ``stamp`` (a fresh id per call). ``n_candidates`` counts the
     occluders found before ``V`` was settled (0: none at all, the light wholly visible).
+    ``slabs`` is :data:`SLABS`, or 0 for the reference the tests hold it to: one search of
+    the whole box, then every candidate drawn.
 
     The search (step 1) and the raster (step 3) are interleaved: the pyramid's box is walked
     in :data:`SLABS` slabs along its longest axis, from the eye's end, and each layer's
@@ -484,8 +487,9 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
         axis, lo, hi, e_at = 2, k0, k1, ez
     mid = grid.origin[axis] + 0.5 * (lo + hi + 1) * grid.cell[axis]
     step = 1 if e_at <= mid else -1
+    stop = slabs > 0
     n_layers = hi - lo + 1
-    thick = (n_layers + SLABS - 1) // SLABS
+    thick = (n_layers + slabs - 1) // slabs if stop else n_layers
     n_c = 0
     ready = False
     first = 0
@@ -522,9 +526,9 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
                 first += 1
         first = _occlude(grid, ex, ey, ez, n, cand, n_c, found, hz, r, cos_thr, tab, lx, ly,
                          lz, ev, enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item, zbuf, mask,
-                         xc, yc, x0, inv_px, y0, inv_py, first)
+                         xc, yc, x0, inv_px, y0, inv_py, first, stop)
         n_c = found
-        if first == r * r:
+        if stop and first == r * r:
             return 0.0, n_c
     if n_c == 0:
         return 1.0, 0
@@ -537,7 +541,7 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
 
 @jit
 def area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count, em_normal,
-                          em_radiance, resolution, edge_angle):
+                          em_radiance, resolution, edge_angle, slabs=SLABS):
     """Irradiance from the area lights at ``points`` by the window method, and its work.
 
     Parameters
@@ -559,6 +563,9 @@ def area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count, 
         Side ``R`` of the window raster (``R × R`` pixels over the light's min–max window).
     edge_angle : float
         Radians a polyline piece of a projected edge may subtend (eq. 4).
+    slabs : int
+        :data:`SLABS`; 0 searches every pyramid whole and draws every candidate (the
+        reference for the early stop: the same bits, slower).
 
     Returns
     -------
@@ -614,7 +621,7 @@ def area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count, 
             vis, n_c = visible_fraction(grid, p, n, em_corners[m], cntm, en, off, hz, r,
                                         cos_thr, tab, planes, stamp, sid, cand, lx, ly, lz,
                                         ev, enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item,
-                                        zbuf, mask, xc, yc)
+                                        zbuf, mask, xc, yc, slabs)
             sid += 1
             work[i] += n_c
             for c in range(3):
@@ -627,4 +634,5 @@ def area_irradiance(grid, points, normals, off, hz, em_corners, em_count, em_nor
                     em_radiance, resolution, edge_angle):
     """``(n, 3) float64``: :func:`area_irradiance_stats` without the work counts."""
     return area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count,
-                                 em_normal, em_radiance, resolution, edge_angle)[0]
+                                 em_normal, em_radiance, resolution, edge_angle,
+                                 SLABS)[0]
