@@ -19,11 +19,21 @@ vertices and over the **penumbra** alone (vertices where the reference is strict
 Errors are relative: RMS of the difference over the RMS of the reference on the same
 vertices, and the largest difference over the largest reference value. Seconds are the best
 of three in-process runs of :func:`daskrad.direct.compute` (kernels compiled beforehand).
+
+``--scene PATH`` (repeatable; e.g. RenderPark's office and classroom, which are not in the
+repository) measures instead the window method's early stop on a scene with many luminaires
+(issue 12, item 5): over every k-th vertex (``--vertices``, default 8000), CPU seconds of the
+window at 32² with the slab search and early stop (``SLABS``) against the exhaustive reference
+(``slabs = 0``: every pyramid searched whole, every candidate drawn), alternated in one
+process, with the vertex-light pairs by kind; the two must give the same bits. Results go to
+``results/arealight_scenes.json``.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -31,10 +41,13 @@ from pathlib import Path
 import numpy as np
 
 from daskrad import direct, tolerances
-from daskrad.kernels.arealight import area_irradiance_stats
+from daskrad.kernels.arealight import SLABS, area_irradiance_stats
 from daskrad.kernels.grid import build_grid
+from daskrad.kernels.lambert import lambert_polygon
 from daskrad.mesh import build_hierarchy, default_sizes, hierarchy_triangles
+from daskrad.preprocess import preprocess
 from daskrad.scene import load_scene
+from daskrad.settings import Settings
 
 RESULTS = Path(__file__).parent / "results"
 SCENE = Path(__file__).parent.parent / "scenes" / "cornell_box.obj"
@@ -144,7 +157,69 @@ def _choose(result) -> dict:
     return out
 
 
-def main() -> dict:
+def _pairs(ctx, P, N) -> dict:
+    """Vertex-light pairs: all, with the vertex on the emitting side, and with ``F > 0``."""
+    C, en = ctx.emitter_corners, ctx.emitter_normal
+    side = np.einsum("mk,vmk->vm", en, P[:, None, :] - C[None, :, 0, :]) > 0
+    lit = 0
+    for v, m in zip(*np.nonzero(side), strict=True):
+        lit += lambert_polygon(*P[v], *N[v], C[m], int(ctx.emitter_count[m])) > 0
+    return {"pairs": int(side.size), "emitting_side": int(side.sum()), "lit": int(lit)}
+
+
+def _scene(path: str, vertices: int) -> dict:
+    """The early stop against the exhaustive window on ``vertices`` vertices of a scene."""
+    scene = load_scene(path)
+    settings = Settings()
+    mesh = preprocess(scene, settings)
+    ctx = direct.make_context(scene, mesh.hierarchy, mesh.grid, method="hemisphere")
+    step = max(1, len(ctx.area_points) // vertices)
+    P = np.ascontiguousarray(ctx.area_points[::step])
+    N = np.ascontiguousarray(ctx.normals[::step])
+    args = (ctx.offset, ctx.offset * tolerances.HORIZON_EPS / tolerances.RAY_OFFSET,
+            ctx.emitter_corners, ctx.emitter_count, ctx.emitter_normal, ctx.emitter_radiance,
+            direct.AREA_RESOLUTION, np.radians(tolerances.EDGE_ANGLE_DEG))
+    for slabs in (SLABS, 0):  # compile (or load) before timing
+        area_irradiance_stats(ctx.grid, P[:4], N[:4], *args, slabs)
+    best = {SLABS: np.inf, 0: np.inf}
+    out = {}
+    for _ in range(2):
+        for slabs in (SLABS, 0):
+            t = time.process_time()
+            out[slabs] = area_irradiance_stats(ctx.grid, P, N, *args, slabs)
+            best[slabs] = min(best[slabs], time.process_time() - t)
+    return {"scene": str(path), "vertices": len(P), "of_vertices": len(ctx.area_points),
+            "emitter_patches": int(len(ctx.emitter_corners)), **_pairs(ctx, P, N),
+            "cpu_seconds_early_stop": best[SLABS], "cpu_seconds_exhaustive": best[0],
+            "candidates_early_stop": int(out[SLABS][1].sum()),
+            "candidates_exhaustive": int(out[0][1].sum()),
+            "same_bits": bool(np.array_equal(out[SLABS][0], out[0][0]))}
+
+
+def scenes(paths: list[str], vertices: int) -> list[dict]:
+    rows = [_scene(p, vertices) for p in paths]
+    for r in rows:
+        print(f"{Path(r['scene']).name}: {r['vertices']} of {r['of_vertices']} vertices x "
+              f"{r['emitter_patches']} emitter patches = {r['pairs']} pairs, "
+              f"{r['emitting_side']} on the emitting side, {r['lit']} with F > 0; window 32²: "
+              f"early stop {r['cpu_seconds_early_stop']:.2f} s CPU "
+              f"({r['candidates_early_stop']} candidates), exhaustive "
+              f"{r['cpu_seconds_exhaustive']:.2f} s ({r['candidates_exhaustive']}); "
+              f"x{r['cpu_seconds_exhaustive'] / r['cpu_seconds_early_stop']:.2f}, "
+              f"same bits: {r['same_bits']}")
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "arealight_scenes.json").write_text(json.dumps(rows, indent=2) + "\n")
+    return rows
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_arealight")
+    parser.add_argument("--scene", action="append", default=[],
+                        help="a scene with many luminaires: early stop vs exhaustive window")
+    parser.add_argument("--vertices", type=int, default=8000)
+    args = parser.parse_args([] if argv is None else argv)
+    if args.scene:
+        return {"scenes": scenes(args.scene, args.vertices)}
     scene = load_scene(SCENE)
     results = []
     for name, size in MESHES:
@@ -189,4 +264,4 @@ def main() -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])

@@ -32,6 +32,15 @@ measures it on the disc, but only where the light is:
 4. ``V = (light pixels not hidden) / (light pixels)``: each pixel of the window has the same
    area on the disc, hence the same projected solid angle (eqs. 6–7 restricted to the window).
 
+Steps 1 and 3 are interleaved (:func:`visible_fraction`): the cells are searched slab by slab
+from the eye towards the light and each slab's candidates drawn at once, and the search stops
+as soon as every light pixel is hidden (``V = 0`` exactly: a hidden pixel never becomes
+visible again). A wholly hidden light, most of the vertex-light pairs of a room with many
+luminaires, then costs its first few occluders instead of every triangle in its pyramid
+(RenderPark's office: 90 % of the pairs with candidates are wholly hidden, behind 117 of
+them on average). The pixels hidden do not depend on the order occluders are drawn in, so
+``V`` has the same bits as searching everything first.
+
 Occluders are two-sided (the grid's triangles carry no orientation, and a shadow ray is blocked
 by either side), so a triangle is oriented towards the eye before it is projected. The eye is
 ``p + off · n``, the shadow rays' origin: the receiver's own polygon lies ``off`` below it and
@@ -65,6 +74,14 @@ from daskrad.kernels.hemisphere import (
 )
 from daskrad.kernels.lambert import lambert_polygon
 from daskrad.kernels.tolerances import WINDOW_MIN
+
+#: The pyramid's box is searched in at most this many slabs along its longest axis, from the
+#: eye's end (:func:`visible_fraction`), and a wholly hidden light stops after the slab that
+#: hides it. Measured on RenderPark's office (graz, 8,203 vertices x 32 emitter patches) and
+#: the classroom (9,168 x 24) against one search of the whole box: 8 slabs, -20 % and -6 %
+#: CPU; 3 and 16 about the same; slabs of one cell, -0 % and +10 % (each slab along x walks
+#: every row of the box again).
+SLABS = 8
 
 
 @jit
@@ -125,17 +142,9 @@ def _cell_range(lo, hi, origin, cell, n):
 
 
 @jit
-def _candidates(grid, ex, ey, ez, nx, ny, nz, corners, count, planes, hz, off, stamp, sid,
-                cand):
-    """Triangles that may hide part of the light from the eye, into ``cand``; returns how many.
-
-    A triangle intersecting the pyramid has a point ``x`` inside it (within ``off``); ``x``
-    lies in some cell, in whose list the grid registered the triangle, and that cell is not
-    rejected (its corner farthest inside each plane is at least as far inside as ``x``). So
-    walking the cells of the pyramid's bounding box that no plane rejects finds every such
-    triangle; ``stamp (T,)`` (``== sid`` once seen for this light and point) drops repeats.
-    """
-    npl = count + 1
+def _box_cells(grid, ex, ey, ez, corners, count, off):
+    """Cell ranges ``(i0, i1, j0, j1, k0, k1)`` of the pyramid's bounding box, grown by
+    ``off`` and clamped to the grid."""
     lox = ex
     hix = ex
     loy = ey
@@ -153,11 +162,29 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, corners, count, planes, hz, off, s
     i0, i1 = _cell_range(lox - off, hix + off, origin[0], cell[0], dims[0])
     j0, j1 = _cell_range(loy - off, hiy + off, origin[1], cell[1], dims[1])
     k0, k1 = _cell_range(loz - off, hiz + off, origin[2], cell[2], dims[2])
+    return i0, i1, j0, j1, k0, k1
+
+
+@jit
+def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid, cand,
+                n_c, i0, i1, j0, j1, k0, k1):
+    """Triangles that may hide part of the light from the eye, appended to ``cand`` after its
+    first ``n_c``; returns the new count. Only cells ``i0..i1 × j0..j1 × k0..k1`` (a part of
+    :func:`_box_cells`) are walked.
+
+    A triangle intersecting the pyramid has a point ``x`` inside it (within ``off``); ``x``
+    lies in some cell, in whose list the grid registered the triangle, and that cell is not
+    rejected (its corner farthest inside each plane is at least as far inside as ``x``). So
+    walking the cells of the pyramid's bounding box that no plane rejects finds every such
+    triangle, whatever parts the box is walked in; ``stamp (T,)`` (``== sid`` once seen for
+    this light and point) drops repeats, within a part and across parts.
+    """
+    npl = count + 1
+    origin, cell, dims = grid.origin, grid.cell, grid.dims
     hx = 0.5 * cell[0]
     hy = 0.5 * cell[1]
     hzc = 0.5 * cell[2]
     tris = grid.triangles
-    n_c = 0
     for k in range(k0, k1 + 1):
         cz = origin[2] + (k + 0.5) * cell[2]
         for j in range(j0, j1 + 1):
@@ -261,26 +288,15 @@ def _centroid_ray(grid, ex, ey, ez, corners, count, off):
 
 
 @jit
-def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_thr, tab,
-                     planes, stamp, sid, cand, lx, ly, lz, ev, enrm, eoff, scr, qclip, xs, ys,
-                     xcross, cnt, item, zbuf, mask, xc, yc):
-    """``(V, n_candidates)``: the visible fraction of one light from ``p`` (module docstring).
+def _light_window(ex, ey, ez, n, corners, count, en, hz, r, cos_thr, tab, lx, ly, lz, ev,
+                  enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item, zbuf, mask, xc, yc, off):
+    """Steps 2–3 for the light: project it, take its window, fill it into the z-buffer.
 
-    ``corners (count, 3)`` is the light, ``en (3,)`` its unit emitting normal (``p`` must lie
-    on that side); ``hz`` the horizon clip height; ``resolution`` the window side ``R``;
-    ``cos_thr, tab`` the edge splitting of :func:`daskrad.kernels.hemisphere.split_table`.
-    The rest are scratch buffers sized by :func:`area_irradiance_stats`; ``sid`` must differ
-    from every value in ``stamp`` (a fresh id per call).
+    Returns ``(status, x0, inv_px, y0, inv_py, n_light)``: ``status`` 0 when the raster is
+    ready (``item`` 0 on the light's ``n_light`` pixels, −1 elsewhere, the light ``off``
+    nearer in ``zbuf``), 1 when the light is at most ``off`` above the horizon (``V = 1``,
+    nothing to measure), 2 when it is too thin for a pixel centre (one centroid ray decides).
     """
-    r = resolution
-    ex = p[0] + off * n[0]
-    ey = p[1] + off * n[1]
-    ez = p[2] + off * n[2]
-    _pyramid(ex, ey, ez, corners, count, en, off, planes)
-    n_c = _candidates(grid, ex, ey, ez, n[0], n[1], n[2], corners, count, planes, hz, off,
-                      stamp, sid, cand)
-    if n_c == 0:
-        return 1.0, 0
     t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(n[0], n[1], n[2])
     cx = scr[0]
     cy = scr[1]
@@ -288,7 +304,6 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
     qx = scr[3]
     qy = scr[4]
     qz = scr[5]
-    # ---- the light, projected like any element (eqs. 1–4)
     for a in range(count):
         wx = corners[a, 0] - ex
         wy = corners[a, 1] - ey
@@ -306,7 +321,7 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
                                cx, cy, cz, qx, qy, qz, qclip, xs, ys)
     if mm == 0:
         # at most ``off`` above the eye's horizon (F is round-off there): nothing to measure
-        return 1.0, n_c
+        return 1, 0.0, 0.0, 0.0, 0.0, 0
     # ---- the window: min–max of the projected outline, inside [-1, 1]²
     x0 = np.inf
     x1 = -np.inf
@@ -322,7 +337,7 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
     x1 = min(x1, 1.0)
     y1 = min(y1, 1.0)
     if not (x1 - x0 > WINDOW_MIN and y1 - y0 > WINDOW_MIN):
-        return _centroid_ray(grid, ex, ey, ez, corners, count, off), n_c
+        return 2, 0.0, 0.0, 0.0, 0.0, 0
     inv_px = r / (x1 - x0)
     inv_py = r / (y1 - y0)
     for i in range(r):
@@ -341,7 +356,7 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
     n_light = fill_polygon(xs, ys, mm, 0, xc, yc, r, r, x0, inv_px, y0, inv_py, mask,
                            da, db, dc, de, xcross, cnt, item, zbuf)
     if n_light == 0:
-        return _centroid_ray(grid, ex, ey, ez, corners, count, off), n_c
+        return 2, 0.0, 0.0, 0.0, 0.0, 0
     # Only the light's pixels matter: mask the rest out, and pull the light ``off`` nearer
     # (an occluder must be nearer than t_light − off to hide it, as a shadow ray's tmax).
     for idx in range(r * r):
@@ -350,10 +365,36 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
         else:
             near = zbuf[idx]
             zbuf[idx] = near / (1.0 - off * near) if off * near < 1.0 else np.inf
-    # ---- the occluders, two-sided: oriented towards the eye
+    return 0, x0, inv_px, y0, inv_py, n_light
+
+
+@jit
+def _occlude(grid, ex, ey, ez, n, cand, s0, s1, hz, r, cos_thr, tab, lx, ly, lz, ev, enrm,
+             eoff, scr, qclip, xs, ys, xcross, cnt, item, zbuf, mask, xc, yc, x0, inv_px, y0,
+             inv_py, first, stop):
+    """Step 3 for the occluders ``cand[s0:s1]``: each, oriented towards the eye, hides the
+    light's pixels it covers nearer than the light.
+
+    ``first`` is the first light pixel still visible (``item`` 0) before them; returns it
+    after them, ``r²`` when every light pixel is hidden (the rest are then skipped when
+    ``stop``). A hidden
+    pixel never becomes visible again (an occluder only ever sets ``item`` 1), so ``first``
+    only moves forward and the set of hidden pixels does not depend on the order occluders
+    are drawn in.
+    """
+    t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(n[0], n[1], n[2])
+    cx = scr[0]
+    cy = scr[1]
+    cz = scr[2]
+    qx = scr[3]
+    qy = scr[4]
+    qz = scr[5]
     tris = grid.triangles
+    ev[0, 0] = 0
+    ev[0, 1] = 1
+    ev[0, 2] = 2
     ev[0, 3] = -1
-    for s in range(n_c):
+    for s in range(s0, s1):
         t = cand[s]
         for a in range(3):
             wx = tris[t, a, 0] - ex
@@ -395,10 +436,104 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
         nly = t2x * gx + t2y * gy + t2z * gz
         nlz = n[0] * gx + n[1] * gy + n[2] * gz
         da, db, dc, de = depth_coefficients(False, qx, qy, qz, m, nlx, nly, nlz, c)
-        fill_polygon(xs, ys, mm, 1, xc, yc, r, r, x0, inv_px, y0, inv_py, mask,
-                     da, db, dc, de, xcross, cnt, item, zbuf)
+        if fill_polygon(xs, ys, mm, 1, xc, yc, r, r, x0, inv_px, y0, inv_py, mask,
+                        da, db, dc, de, xcross, cnt, item, zbuf) > 0:
+            while first < r * r and item[first] != 0:
+                first += 1
+            if stop and first == r * r:
+                return first
+    return first
+
+
+@jit
+def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_thr, tab,
+                     planes, stamp, sid, cand, lx, ly, lz, ev, enrm, eoff, scr, qclip, xs, ys,
+                     xcross, cnt, item, zbuf, mask, xc, yc, slabs):
+    """``(V, n_candidates)``: the visible fraction of one light from ``p`` (module docstring).
+
+    ``corners (count, 3)`` is the light, ``en (3,)`` its unit emitting normal (``p`` must lie
+    on that side); ``hz`` the horizon clip height; ``resolution`` the window side ``R``;
+    ``cos_thr, tab`` the edge splitting of :func:`daskrad.kernels.hemisphere.split_table`.
+    The rest are scratch buffers sized by :func:`area_irradiance_stats`; ``sid`` must differ
+    from every value in ``stamp`` (a fresh id per call). ``n_candidates`` counts the
+    occluders found before ``V`` was settled (0: none at all, the light wholly visible).
+    ``slabs`` is :data:`SLABS`, or 0 for the reference the tests hold it to: one search of
+    the whole box, then every candidate drawn.
+
+    The search (step 1) and the raster (step 3) are interleaved: the pyramid's box is walked
+    in :data:`SLABS` slabs along its longest axis, from the eye's end, and each layer's
+    candidates are drawn at once; as soon as every light pixel is hidden, ``V = 0`` and the
+    rest of the box is not searched. Most vertex-light pairs of a scene with many luminaires
+    are of that kind (a desk, a wall or the luminaire's own housing between them), and the
+    occluders nearest the eye, found first, usually hide the light alone. Neither the set of
+    candidates (every cell of the box is walked unless ``V = 0``) nor the hidden pixels
+    depend on the walk order (:func:`_occlude`), so ``V`` has the same bits as a search of
+    the whole box followed by the raster.
+    """
+    r = resolution
+    ex = p[0] + off * n[0]
+    ey = p[1] + off * n[1]
+    ez = p[2] + off * n[2]
+    _pyramid(ex, ey, ez, corners, count, en, off, planes)
+    i0, i1, j0, j1, k0, k1 = _box_cells(grid, ex, ey, ez, corners, count, off)
+    # the longest axis of the box in cells, walked from the eye's end
+    axis = 0
+    lo = i0
+    hi = i1
+    e_at = ex
+    if j1 - j0 > hi - lo:
+        axis, lo, hi, e_at = 1, j0, j1, ey
+    if k1 - k0 > hi - lo:
+        axis, lo, hi, e_at = 2, k0, k1, ez
+    mid = grid.origin[axis] + 0.5 * (lo + hi + 1) * grid.cell[axis]
+    step = 1 if e_at <= mid else -1
+    stop = slabs > 0
+    n_layers = hi - lo + 1
+    thick = (n_layers + slabs - 1) // slabs if stop else n_layers
+    n_c = 0
+    ready = False
+    first = 0
+    x0 = inv_px = y0 = inv_py = 0.0
+    n_light = 0
+    for q in range((n_layers + thick - 1) // thick):
+        if step == 1:
+            s0 = lo + q * thick
+            s1 = min(s0 + thick - 1, hi)
+        else:
+            s1 = hi - q * thick
+            s0 = max(s1 - thick + 1, lo)
+        a0, a1, b0, b1, c0, c1 = i0, i1, j0, j1, k0, k1
+        if axis == 0:
+            a0, a1 = s0, s1
+        elif axis == 1:
+            b0, b1 = s0, s1
+        else:
+            c0, c1 = s0, s1
+        found = _candidates(grid, ex, ey, ez, n[0], n[1], n[2], count, planes, hz, off,
+                            stamp, sid, cand, n_c, a0, a1, b0, b1, c0, c1)
+        if found == n_c:
+            continue
+        if not ready:
+            status, x0, inv_px, y0, inv_py, n_light = _light_window(
+                ex, ey, ez, n, corners, count, en, hz, r, cos_thr, tab, lx, ly, lz, ev, enrm,
+                eoff, scr, qclip, xs, ys, xcross, cnt, item, zbuf, mask, xc, yc, off)
+            if status == 1:
+                return 1.0, found
+            if status == 2:
+                return _centroid_ray(grid, ex, ey, ez, corners, count, off), found
+            ready = True
+            while first < r * r and item[first] != 0:
+                first += 1
+        first = _occlude(grid, ex, ey, ez, n, cand, n_c, found, hz, r, cos_thr, tab, lx, ly,
+                         lz, ev, enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item, zbuf, mask,
+                         xc, yc, x0, inv_px, y0, inv_py, first, stop)
+        n_c = found
+        if stop and first == r * r:
+            return 0.0, n_c
+    if n_c == 0:
+        return 1.0, 0
     n_vis = 0
-    for idx in range(r * r):
+    for idx in range(first, r * r):
         if item[idx] == 0:
             n_vis += 1
     return n_vis / n_light, n_c
@@ -406,7 +541,7 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
 
 @jit
 def area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count, em_normal,
-                          em_radiance, resolution, edge_angle):
+                          em_radiance, resolution, edge_angle, slabs=SLABS):
     """Irradiance from the area lights at ``points`` by the window method, and its work.
 
     Parameters
@@ -428,13 +563,17 @@ def area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count, 
         Side ``R`` of the window raster (``R × R`` pixels over the light's min–max window).
     edge_angle : float
         Radians a polyline piece of a projected edge may subtend (eq. 4).
+    slabs : int
+        :data:`SLABS`; 0 searches every pyramid whole and draws every candidate (the
+        reference for the early stop: the same bits, slower).
 
     Returns
     -------
     H : (n, 3) float64
         ``Σ_lights π Le F V``.
     work : (n,) int64
-        Candidate occluders rasterized per point (summed over lights; 0: no raster at all).
+        Candidate occluders found per point before each light's ``V`` was settled (summed over
+        lights; 0: no candidate, no raster at all).
     """
     npts = points.shape[0]
     out = np.zeros((npts, 3))
@@ -482,7 +621,7 @@ def area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count, 
             vis, n_c = visible_fraction(grid, p, n, em_corners[m], cntm, en, off, hz, r,
                                         cos_thr, tab, planes, stamp, sid, cand, lx, ly, lz,
                                         ev, enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item,
-                                        zbuf, mask, xc, yc)
+                                        zbuf, mask, xc, yc, slabs)
             sid += 1
             work[i] += n_c
             for c in range(3):
@@ -495,4 +634,5 @@ def area_irradiance(grid, points, normals, off, hz, em_corners, em_count, em_nor
                     em_radiance, resolution, edge_angle):
     """``(n, 3) float64``: :func:`area_irradiance_stats` without the work counts."""
     return area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count,
-                                 em_normal, em_radiance, resolution, edge_angle)[0]
+                                 em_normal, em_radiance, resolution, edge_angle,
+                                 SLABS)[0]
