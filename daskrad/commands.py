@@ -135,6 +135,7 @@ def _camera_of(args, stored):
 
 def render_command(args) -> None:
     """``daskrad render STORE -o VIEW.exr``: a new view of a finished solution."""
+    from daskrad.distributed.executor import InProcess
     from daskrad.distributed.store import Result
     from daskrad.errors import OptionError
     from daskrad.io import write_exr, write_png
@@ -149,7 +150,12 @@ def render_command(args) -> None:
     cam = _camera_of(args, ctx.camera)
     Settings(width=cam.width, height=cam.height, spp=args.spp or ctx.spp).validate()
     t = time.perf_counter()
-    image = pixels(replace(ctx, camera=cam, spp=args.spp or ctx.spp))
+    # the view's junction gather and tiles on every core, as an in-process run renders
+    ex = InProcess()
+    try:
+        image = pixels(replace(ctx, camera=cam, spp=args.spp or ctx.spp), ex)
+    finally:
+        ex.close()
     write_exr(outputs.exr, image)
     write_png(outputs.png, image, stops=args.exposure or 0.0)
     if not args.quiet:

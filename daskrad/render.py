@@ -38,6 +38,43 @@ TILE = 64
 
 
 @dataclass(frozen=True)
+class Junctions:
+    """What the junction gather of a view needs (:func:`for_view`, :func:`_junction_gather`).
+
+    points, normals : (V, 3) float64
+        Where each vertex is evaluated (1e-5 of the diagonal inside its polygon) and its normal.
+    offset : float
+        Ray offset (length).
+    elem_verts : (E, 4) int32
+        Element corners (``-1``: a triangle's fourth).
+    vertex_rho : (V, 3) float64
+        Reflectance at each vertex (of an element it belongs to).
+    vertex_indirect : (V, 3) float64
+        The interpolated (indirect) part of the vertex radiance before the gather.
+    exclude : (E, 3) float64
+        Radiance taken off a hit on each element (its ``Ke`` when the direct pass lit the
+        vertices with the emitters).
+    gatherable : (V,) bool
+        Vertices that may be gathered: corners of some element, not T-vertices.
+    reach : float
+        How far another surface makes a vertex "beside a junction" (length).
+    everywhere : bool
+        Gather every vertex, not only those the view shows (a mirror may show any).
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    offset: float
+    elem_verts: np.ndarray
+    vertex_rho: np.ndarray
+    vertex_indirect: np.ndarray
+    exclude: np.ndarray
+    gatherable: np.ndarray
+    reach: float
+    everywhere: bool
+
+
+@dataclass(frozen=True)
 class RenderContext:
     """What a tile task reads.
 
@@ -86,6 +123,11 @@ class RenderContext:
     vertex_soft : (V, 3) float64
         ``vertex_radiance`` without the hard lights' direct radiance ``ρ H_hard / π``: what is
         interpolated under the exact hard light.
+
+    junctions : Junctions, optional
+        The final gather at vertices beside a junction, view-dependent like eq. 9: applied for
+        the camera by :func:`for_view` (which every image goes through), so the context a
+        store keeps is the solution's, and a new view gathers what it shows.
     """
 
     grid: Grid
@@ -115,6 +157,8 @@ class RenderContext:
     open_grid: Grid | None = None
     hard_lights: Lights | None = None
     vertex_soft: np.ndarray | None = None
+    # the junction gather still to apply for this context's camera (:func:`for_view`)
+    junctions: Junctions | None = None
 
     @property
     def extras(self) -> bool:
@@ -404,7 +448,9 @@ SEED_STRIDE = 1 << 42
 
 
 def render(ctx: RenderContext) -> np.ndarray:
-    """The whole image, ``(H, W, 3) float64``, tile by tile in-process."""
+    """The whole image, ``(H, W, 3) float64``, tile by tile in-process (the junction gather
+    applied for its camera, :func:`for_view`)."""
+    ctx = for_view(ctx)
     cam = ctx.camera
     image = np.zeros((cam.height, cam.width, 3))
     for rows, cols in tiles(cam.width, cam.height):
@@ -418,7 +464,7 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
                      elem_shininess: np.ndarray, elem_mirror: np.ndarray,
                      lights: Lights | None, rdiff: float | None, mirror_depth: int,
                      diagonal: float, direct_context=None, tvertices=None,
-                     element_size: float | None = None, executor=None) -> RenderContext:
+                     element_size: float | None = None) -> RenderContext:
     """``ctx`` with the per-pixel pass and specular light switched on where they apply.
 
     ``elem_verts (E, 4) int`` are the elements' corners; ``vertex_direct (V, 3)`` is the
@@ -428,26 +474,24 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
     lights, those are evaluated exactly at every pixel (``hard_lights``; their vertex part,
     recomputed here as the direct pass did, is taken out of what is interpolated), and the
     elements of eq. 9 are selected by the spread of the remaining direct part (area lights).
-    With the pass on and ``direct_context``, the vertices beside a junction also gather their
-    indirect light (:func:`_junction_gather`; ``ctx.vertex_radiance`` changes there, so a
-    context may come back changed even when no pixel needs more than Gouraud;
-    ``element_size``, the mesh's element size, sets how far a junction reaches, by default
-    1/32 of ``diagonal``; ``executor`` casts the gather's rays, in this thread when None).
+    With the pass on and ``direct_context``, the context carries the junction gather
+    (:class:`Junctions`), applied per view by :func:`for_view` (so a context may come back
+    with it even when no pixel needs more than Gouraud; ``element_size``, the mesh's element
+    size, sets how far a junction reaches, by default 1/32 of ``diagonal``).
     Arrays a scene does not need are left ``None``: no hard light, no qualifying element, no
     ``Ks`` and no mirror give back the plain context, so the tile tasks do exactly the work of
     a Gouraud image.
     """
     if lights is not None and lights.empty:
         lights = None
+    junctions = None
     if rdiff is not None and direct_context is not None:
         # indirect light gathered at vertices beside a junction, where element averages miss
-        # the near field (the foot of a block's face on a lit floor)
+        # the near field (the foot of a block's face on a lit floor); applied per view
         size = diagonal / 32.0 if element_size is None else element_size
-        delta = _junction_gather(ctx, direct_context, tvertices, elem_verts, elem_reflectance,
-                                 elem_emission, vertex_indirect, diagonal,
-                                 JUNCTION_REACH * size, executor)
-        ctx = replace(ctx, vertex_radiance=ctx.vertex_radiance + delta)
-        vertex_indirect = vertex_indirect + delta
+        junctions = junctions_of(direct_context, tvertices, elem_verts, elem_reflectance,
+                                 elem_emission, vertex_indirect, JUNCTION_REACH * size,
+                                 mirror_depth > 0 and bool(np.asarray(elem_mirror, bool).any()))
     hard, vertex_hard = None, None
     if rdiff is not None and lights is not None and direct_context is not None:
         hard, vertex_hard = _hard_part(direct_context, tvertices, elem_verts, elem_reflectance,
@@ -461,7 +505,7 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
     has_spec = lights is not None and bool((spec[~mirror] > 0).any())
     has_mirror = mirror_depth > 0 and bool(mirror.any())
     if not (has_pp or has_spec or has_mirror or hard is not None):
-        return ctx
+        return replace(ctx, junctions=junctions)
     E = len(elem_reflectance)
     if hard is not None:
         ctx = replace(ctx, hard_lights=hard, vertex_soft=np.ascontiguousarray(
@@ -478,6 +522,7 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
         lights=lights if (has_pp or has_spec) else None,
         mirror_depth=int(mirror_depth) if has_mirror else 0,
         offset=tolerances.RAY_OFFSET * float(diagonal),
+        junctions=junctions,
     )
 
 
@@ -488,8 +533,7 @@ def camera(scene: Scene, settings: Settings) -> Camera:
 
 
 def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
-            cam: Camera, split: tuple[np.ndarray, np.ndarray] | None = None,
-            executor=None) -> RenderContext:
+            cam: Camera, split: tuple[np.ndarray, np.ndarray] | None = None) -> RenderContext:
     """The tile renderer's context for a solution.
 
     Vertex radiance is split into the part interpolated across elements (indirect light and
@@ -497,7 +541,8 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
     every vertex; T-vertices take both from their edge, so no seam shows. The per-pixel pass
     (eq. 9), Phong highlights and mirrors are switched on where the scene needs them
     (:func:`perpixel_context`). ``split``: :func:`vertex_split` of ``light`` and ``sol`` when
-    the caller has it already; ``executor`` casts the junction gather's rays.
+    the caller has it already. The junction gather is carried, not applied
+    (:func:`for_view`).
     """
     mesh = light.mesh
     h, reflectance = mesh.hierarchy, mesh.reflectance
@@ -517,7 +562,7 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
         mirror_depth=settings.mirror_depth, diagonal=scene.diagonal,
         direct_context=light.context if light.irradiance is not None else None,
         tvertices=light.tvertices,
-        element_size=settings.element_size or default_sizes(scene)[1], executor=executor)
+        element_size=settings.element_size or default_sizes(scene)[1])
     return with_unshadowed(ctx, h)
 
 
@@ -605,7 +650,7 @@ def image(scene: Scene, light: DirectLight, sol: Solution, settings: Settings, e
         raise SceneError("the radiosity solution is not finite (NaN or inf): emission or "
                          "light intensities too large for a float64", scene.path)
     split = vertex_split(light, sol)
-    ctx = context(scene, light, sol, settings, cam or camera(scene, settings), split, executor)
+    ctx = context(scene, light, sol, settings, cam or camera(scene, settings), split)
     out = pixels(ctx, executor)
     if not np.isfinite(out).all():
         raise SceneError("the image is not finite (NaN or inf radiance)", scene.path)
@@ -618,6 +663,7 @@ def pixels(ctx: RenderContext, executor=None) -> np.ndarray:
     """``(H, W, 3) float64``: the image of ``ctx``, tile by tile on ``executor`` (``tile-…``
     futures; default this process). The same bits either way, and from a context read back
     from a store (``daskrad render``)."""
+    ctx = for_view(ctx, executor)
     parts = tiles(ctx.camera.width, ctx.camera.height)
     out = np.zeros((ctx.camera.height, ctx.camera.width, 3))
     done = (executor.tiles(ctx, parts) if executor is not None
@@ -718,10 +764,65 @@ def gather_vertices(gctx: GatherContext, start: int, stop: int) -> np.ndarray:
                            float(gctx.offset), int(gctx.side))
 
 
-def _junction_gather(ctx: RenderContext, dctx, tvertices, elem_verts: np.ndarray,
-                     elem_reflectance: np.ndarray, elem_emission: np.ndarray,
-                     vertex_indirect: np.ndarray, diagonal: float, reach: float,
-                     executor=None) -> np.ndarray:
+def seen_elements(ctx: RenderContext) -> np.ndarray:
+    """``(E,) bool``: the elements a primary ray of the image hits (every sample of every
+    pixel, the rays :func:`render_tile` casts), whichever side."""
+    E = len(ctx.elem_normal)
+    seen = np.zeros(E, bool)
+    for rows, cols in tiles(ctx.camera.width, ctx.camera.height):
+        o, d = primary_rays(ctx.camera, rows, cols, ctx.spp)
+        _, tri, _, _ = closest_hit(ctx.grid, o, d, 0.0, np.inf)
+        seen[ctx.tri_element[tri[tri >= 0]]] = True
+    return seen
+
+
+def junctions_of(dctx, tvertices, elem_verts: np.ndarray, elem_reflectance: np.ndarray,
+                 elem_emission: np.ndarray, vertex_indirect: np.ndarray, reach: float,
+                 everywhere: bool) -> Junctions:
+    """The :class:`Junctions` of a solution: ``dctx`` the direct context its vertices were lit
+    with (evaluation points, normals, offset, whether emitters were gathered), ``tvertices``
+    its T-vertices (never gathered: they keep their edge's values, no seam)."""
+    V = len(vertex_indirect)
+    valid = elem_verts >= 0
+    gatherable = np.zeros(V, bool)
+    gatherable[elem_verts[valid]] = True
+    if tvertices is not None and len(tvertices.vertex):
+        gatherable[tvertices.vertex] = False
+    owner = np.broadcast_to(np.arange(len(elem_verts))[:, None], elem_verts.shape)
+    rho = np.zeros((V, 3))
+    rho[elem_verts[valid]] = elem_reflectance[owner[valid]]
+    exclude = (np.ascontiguousarray(elem_emission, dtype=np.float64)
+               if len(dctx.emitter_corners) else np.zeros((len(elem_reflectance), 3)))
+    return Junctions(points=np.ascontiguousarray(dctx.area_points, dtype=np.float64),
+                     normals=np.ascontiguousarray(dctx.normals, dtype=np.float64),
+                     offset=float(dctx.offset),
+                     elem_verts=np.ascontiguousarray(elem_verts, dtype=np.int32),
+                     vertex_rho=rho,
+                     vertex_indirect=np.ascontiguousarray(vertex_indirect, dtype=np.float64),
+                     exclude=exclude, gatherable=gatherable, reach=float(reach),
+                     everywhere=bool(everywhere))
+
+
+def for_view(ctx: RenderContext, executor=None) -> RenderContext:
+    """``ctx`` with its junction gather applied for its camera (``ctx`` itself when it has
+    none): the gathered change added to the vertex radiance and to its interpolated parts.
+    Every image goes through it (:func:`pixels`), so a run and a re-render with the same
+    camera give the same bits. ``executor`` casts the rays (threads or ``gather-…`` tasks)."""
+    j = ctx.junctions
+    if j is None:
+        return ctx
+    everywhere = j.everywhere or ctx.camera is None      # no view: gather what any may show
+    delta = _junction_gather(ctx, j, executor, None if everywhere else seen_elements(ctx))
+    out = replace(ctx, vertex_radiance=ctx.vertex_radiance + delta, junctions=None)
+    if ctx.vertex_indirect is not None:
+        out = replace(out, vertex_indirect=ctx.vertex_indirect + delta)
+    if ctx.vertex_soft is not None:
+        out = replace(out, vertex_soft=ctx.vertex_soft + delta)
+    return out
+
+
+def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
+                     seen: np.ndarray | None = None) -> np.ndarray:
     """``(V, 3)``: the change of vertex radiance when the indirect light of the vertices
     beside a junction is gathered (:mod:`daskrad.kernels.gather`) instead of averaged from
     their elements: ``ρ · mean(L)`` over cosine-distributed rays from the vertex, ``L`` the
@@ -744,20 +845,65 @@ def _junction_gather(ctx: RenderContext, dctx, tvertices, elem_verts: np.ndarray
     previous pass made (the gather is linear in the radiance seen): the two sides of a
     junction (floor and block face) light each other, and the first pass saw both with their
     averaged values.
+
+    ``seen (E,) bool``: only the corners of these elements are gathered (the elements the
+    image shows, :func:`seen_elements`): the gather is part of the view-dependent pass, like
+    eq. 9. An office's furniture puts most vertices beside a junction, and most are out of
+    view (graz: 445 s of a 538 s render gathered the whole scene). None: every vertex.
+    ``j.vertex_indirect`` and ``j.vertex_rho`` are the current indirect radiance and the
+    reflectance at each vertex.
     """
     from daskrad.kernels.gather import near_surface
 
     V = len(ctx.vertex_radiance)
     delta = np.zeros((V, 3))
-    pts = np.ascontiguousarray(dctx.area_points)
-    nrm = np.ascontiguousarray(dctx.normals)
+    elem_verts = j.elem_verts
     used = np.zeros(V, bool)
-    used[elem_verts[elem_verts >= 0]] = True
-    if tvertices is not None and len(tvertices.vertex):
-        used[tvertices.vertex] = False
+    shown = elem_verts if seen is None else elem_verts[seen]
+    used[shown[shown >= 0]] = True
+    used &= j.gatherable
     cand = np.flatnonzero(used)
     if len(cand) == 0:
         return delta
+    near = near_surface(ctx.grid, j.points[cand], j.normals[cand], j.offset, j.reach, 4)
+    beside = np.zeros(V, bool)
+    beside[cand[near]] = True
+    # ... and the other corners of the elements with such a corner
+    valid = elem_verts >= 0
+    touching = (beside[np.where(valid, elem_verts, 0)] & valid).any(axis=1)
+    if seen is not None:
+        touching &= seen
+    gathered = np.zeros(V, bool)
+    gathered[elem_verts[touching][valid[touching]]] = True
+    idx = np.flatnonzero(gathered & used)
+    if len(idx) == 0:
+        return delta
+    gctx = GatherContext(grid=ctx.grid, tri_verts=ctx.tri_verts, tri_element=ctx.tri_element,
+                         elem_normal=ctx.elem_normal,
+                         vertex_radiance=np.ascontiguousarray(ctx.vertex_radiance),
+                         exclude=j.exclude, points=np.ascontiguousarray(j.points[idx]),
+                         normals=np.ascontiguousarray(j.normals[idx]),
+                         seeds=idx.astype(np.int64), offset=j.offset, side=GATHER_SIDE)
+    ranges = direct.batches(0, len(idx), GATHER_BATCH)
+
+    def gather(g):
+        parts = (executor.gather(g, ranges) if executor is not None
+                 else [gather_vertices(g, a, b) for a, b in ranges])
+        return np.concatenate(parts)
+
+    rho = j.vertex_rho
+    delta[idx] = rho[idx] * gather(gctx) - j.vertex_indirect[idx]
+    change = delta
+    for k in range(1, GATHER_PASSES + 1):
+        # the light the last pass's change sends to the gathered vertices (a change holds no
+        # emission); new jitter seeds per pass, seeded per vertex as the first pass
+        change_at = gather(replace(gctx, vertex_radiance=np.ascontiguousarray(change),
+                                   exclude=np.zeros_like(j.exclude), seeds=idx + k * V,
+                                   side=GATHER_SIDE // 2))
+        change = np.zeros((V, 3))
+        change[idx] = rho[idx] * change_at
+        delta = delta + change
+    return delta
     off = float(dctx.offset)
     near = near_surface(ctx.grid, pts[cand], nrm[cand], off, reach, 4)
     beside = np.zeros(V, bool)
@@ -765,6 +911,8 @@ def _junction_gather(ctx: RenderContext, dctx, tvertices, elem_verts: np.ndarray
     # ... and the other corners of the elements with such a corner
     valid = elem_verts >= 0
     touching = (beside[np.where(valid, elem_verts, 0)] & valid).any(axis=1)
+    if seen is not None:
+        touching &= seen
     gathered = np.zeros(V, bool)
     gathered[elem_verts[touching][valid[touching]]] = True
     idx = np.flatnonzero(gathered & used)

@@ -136,4 +136,4 @@ def render_context(scene, **opts):
     patch 4, element 0.5, 1 sample per pixel, and its hierarchy."""
     settings = Settings(**{"patch_size": 4.0, "element_size": 0.5, "spp": 1, **opts})
     h, _, sol, light = solve_scene(scene, settings)
-    return render.context(scene, light, sol, settings, scene.camera), h
+    return render.for_view(render.context(scene, light, sol, settings, scene.camera)), h

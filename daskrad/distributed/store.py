@@ -625,12 +625,12 @@ def _known_types() -> dict:
     from daskrad.direct import DirectContext, Lights
     from daskrad.formfactor.shooting import ShootContext
     from daskrad.kernels.grid import Grid
-    from daskrad.render import GatherContext, RenderContext
+    from daskrad.render import GatherContext, Junctions, RenderContext
     from daskrad.scene.types import Camera
 
     return {f"{t.__module__}:{t.__qualname__}": t
             for t in (DirectContext, Lights, ShootContext, Grid, RenderContext, GatherContext,
-                      Camera)}
+                      Junctions, Camera)}
 
 
 def _encode(obj, prefix: str, arrays: dict):
