@@ -160,3 +160,32 @@ def _wall_vertices(h, y, xmax):
     wall[vp >= 0] = normal_z[vp[vp >= 0]] > 0.5
     return np.flatnonzero(wall & (np.abs(h.vertices[:, 1] - y) < 1e-12)
                           & (np.abs(h.vertices[:, 0]) <= xmax))
+
+
+def test_the_junction_gather_of_a_view_changes_only_the_corners_it_shows():
+    # A camera close above the floor's left half, looking down: the image shows part of the
+    # floor and of the wall's foot. The gather is view-dependent (like eq. 9): it changes only
+    # corners of elements the primary rays hit; without a camera it gathers everywhere, so it
+    # also changes corners the view does not show (the test can fail both ways).
+    from dataclasses import replace
+
+    from daskrad.run import solve_scene
+
+    scene = _wall_on_floor()
+    settings = Settings(patch_size=1.0, element_size=0.5, subdivide=0.0, spp=1)
+    h, _, sol, light = solve_scene(scene, settings)
+    cam = Camera(eye=np.array([-1.5, 1.0, -1.2]), look_at=np.array([-1.5, 0.0, -1.6]),
+                 up=np.array([0.0, 0.0, -1.0]), fov=40.0, width=24, height=24)
+    ctx = render.context(scene, light, sol, settings, cam)
+    assert ctx.junctions is not None
+    seen = render.seen_elements(ctx)
+    assert 0 < seen.sum() < len(seen)
+    shown = np.zeros(len(h.vertices), bool)
+    shown[h.elem_verts[seen][h.elem_verts[seen] >= 0]] = True
+    view = render.for_view(ctx)
+    everywhere = render.for_view(replace(ctx, camera=None))
+    changed = np.any(view.vertex_radiance != ctx.vertex_radiance, axis=1)
+    assert changed.any() and not changed[~shown].any()
+    assert np.any(everywhere.vertex_radiance[~shown] != ctx.vertex_radiance[~shown])
+    # the image renders the view's gather, and the stored context keeps the solution's values
+    assert view.junctions is None and ctx.junctions is not None
