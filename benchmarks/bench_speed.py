@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import math
 import os
 import re
 import shutil
@@ -188,7 +187,7 @@ def workers(scenes: list[Path], element_size: float | None, max_iterations: int 
             mem = rep.get("memory", {})
             # a worker's peak (its process is the run's own); the in-process run's peak
             # would be this benchmark process's, earlier runs included: not shown
-            peak = max([w["peak_mib"] for w in mem.get("workers", [])], default=math.nan)
+            peak = max([w["peak_mib"] for w in mem.get("workers", [])], default=None)
             rows.append({"scene": scene.name, "workers": n, "seconds": r["seconds"],
                          "elements": rep["counts"]["elements"], "shots": rep["iterations"],
                          "converged": rep["converged"], "peak MiB": peak,
@@ -254,7 +253,8 @@ def main(argv: list[str] | None = None) -> dict:
     for r in wrows:
         print(f"{r['scene']:<20}{r['workers']:>8}{r['elements']:>10}{r['shots']:>7}"
               f"{r['seconds']:>9.2f}{r['direct s']:>8.2f}{r['solve s']:>8.2f}"
-              f"{r['render s']:>8.2f}{r['speed-up vs 1 worker']:>7.2f}{r['peak MiB']:>11.0f}")
+              f"{r['render s']:>8.2f}{r['speed-up vs 1 worker']:>7.2f}"
+              f"{'' if r['peak MiB'] is None else round(r['peak MiB']):>11}")
     if not quick:
         RESULTS.mkdir(exist_ok=True)
         (RESULTS / "speed.json").write_text(json.dumps(result, indent=2) + "\n")

@@ -83,8 +83,9 @@ def test_same_bits_for_any_number_of_workers(reference, tmp_path, cluster_client
     # the report gives each worker's peak memory and its row cache, within its budget
     memory = report["memory"]
     assert len(memory["workers"]) == workers and memory["client_peak_mib"] > 0
-    for w in memory["workers"]:
-        assert w["peak_mib"] > 0 and 0 < w["row_cache_mib"] <= w["row_cache_limit_mib"]
+    for w in memory["workers"]:     # a worker may have had no shooter to compute
+        assert w["peak_mib"] > 0 and 0 <= w["row_cache_mib"] <= w["row_cache_limit_mib"]
+    assert sum(w["row_cache_mib"] for w in memory["workers"]) > 0
 
 
 def test_worker_cache_loads_each_context_once_per_process(cluster_client, tmp_path):

@@ -162,11 +162,12 @@ def _wall_vertices(h, y, xmax):
                           & (np.abs(h.vertices[:, 0]) <= xmax))
 
 
-def test_the_junction_gather_of_a_view_changes_only_the_corners_it_shows():
+def test_the_junction_gather_of_a_view_changes_only_the_corners_near_what_it_shows():
     # A camera close above the floor's left half, looking down: the image shows part of the
-    # floor and of the wall's foot. The gather is view-dependent (like eq. 9): it changes only
-    # corners of elements the primary rays hit; without a camera it gathers everywhere, so it
-    # also changes corners the view does not show (the test can fail both ways).
+    # floor and of the wall's foot. The gather is view-dependent: it changes only corners of
+    # the elements the primary rays hit and of their neighbours (elements sharing a corner);
+    # without a camera it gathers everywhere, so it also changes corners farther away (the
+    # test can fail both ways).
     from dataclasses import replace
 
     from daskrad.run import solve_scene
@@ -180,12 +181,22 @@ def test_the_junction_gather_of_a_view_changes_only_the_corners_it_shows():
     assert ctx.junctions is not None
     seen = render.seen_elements(ctx)
     assert 0 < seen.sum() < len(seen)
-    shown = np.zeros(len(h.vertices), bool)
-    shown[h.elem_verts[seen][h.elem_verts[seen] >= 0]] = True
+    ev, valid = h.elem_verts, h.elem_verts >= 0
+
+    def corners(elements):
+        out = np.zeros(len(h.vertices), bool)
+        out[ev[elements][valid[elements]]] = True
+        return out
+
+    near = corners((corners(seen)[np.where(valid, ev, 0)] & valid).any(axis=1))
+    assert not near.all()
     view = render.for_view(ctx)
     everywhere = render.for_view(replace(ctx, camera=None))
     changed = np.any(view.vertex_radiance != ctx.vertex_radiance, axis=1)
-    assert changed.any() and not changed[~shown].any()
-    assert np.any(everywhere.vertex_radiance[~shown] != ctx.vertex_radiance[~shown])
-    # the image renders the view's gather, and the stored context keeps the solution's values
+    assert changed[corners(seen)].any() and not changed[~near].any()
+    assert np.any(everywhere.vertex_radiance[~near] != ctx.vertex_radiance[~near])
+    # the image is the view's gather rendered (the stored context keeps the solution's values)
     assert view.junctions is None and ctx.junctions is not None
+    image = render.pixels(ctx)
+    np.testing.assert_array_equal(image, render.pixels(view))
+    assert np.any(image != render.pixels(replace(ctx, junctions=None)))

@@ -95,6 +95,20 @@ def test_a_smaller_tolerance_continues_a_finished_store_to_the_straight_runs_bit
     assert len(kept) >= len(preview["unshot_rms_history"]) - 2 > 0
 
 
+def test_a_finished_store_continues_from_the_state_one_batch_before_its_end(tmp_path, capsys):
+    # checkpoints are at most one per 5 s, so a short run's last timed one is early; the
+    # state before the final batch is kept in memory and written at the end instead
+    out = tmp_path / "short.exr"
+    report = solve(capsys, out, "--tolerance", "0.05")
+    attrs = root_attrs(out.with_suffix(".zarr"))
+    slot = json.loads((out.with_suffix(".zarr") / "internal" / "checkpoint"
+                       / str(attrs["continue"]) / "zarr.json").read_text())["attributes"]
+    history = report["unshot_rms_history"]
+    assert len(history) > 3
+    assert slot["iteration"] == history[-2]["iteration"] and slot["open"]
+    assert attrs["iteration"] == history[-1]["iteration"] == report["iterations"]
+
+
 def test_more_iterations_continue_to_the_straight_runs_bits(tmp_path, capsys):
     full = tmp_path / "full.exr"
     report = solve(capsys, full, "--max-iterations", "200")
@@ -324,7 +338,7 @@ def test_export_writes_meshes_with_vertex_radiance_that_trimesh_reads(straight, 
     before = tree(store)
     root = zarr.open_group(str(store), mode="r")
     vertices = root["vertices"][...]
-    radiance = root["vertex_radiance"][...]             # float32 of what the renderer reads
+    radiance = root["vertex_radiance"][...]             # float32 of the stored context's
     faces = None
     for suffix in (".ply", ".glb", ".obj"):
         path = tmp_path / f"baked{suffix}"

@@ -4,10 +4,10 @@ run as named futures on a cluster (docs/design.md §4).
 Futures carry ids and ranges only; the geometry goes once into the store
 (:meth:`Store.put_context`) and each worker caches it (:mod:`daskrad.distributed.worker`).
 Keys are ``formfactor-<generation>-<batch>-<part>-<run>``,
-``direct-<generation>-<n>-<start>-<run>``, ``gather-<generation>-<n>-<start>-<run>`` and
-``tile-<generation>-<n>-<run>``: the dashboard
-groups them by their first word; the 8-hex run token keeps two runs on one cluster (or two
-runs of one test session) from sharing a key, since a key still held by the scheduler returns
+``direct-<generation>-<n>-<start>-<run>``, ``gather-<generation>-<n>-<start>-<token>-<run>``
+and ``tile-<generation>-<n>-<run>``: the dashboard groups them by their first word; the 8-hex
+run token keeps two runs on one cluster (or two runs of one test session) from sharing a key,
+since a key still held by the scheduler returns
 its old result (docs/stack.md).
 """
 

@@ -5,13 +5,27 @@ from __future__ import annotations
 
 import os
 
+#: Where a container's memory limit is (cgroup v2, then v1).
+CGROUP_LIMITS = ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes")
+
 
 def physical_memory() -> int:
-    """The machine's physical memory in bytes (8 GiB where it cannot be read)."""
+    """Bytes this process's machine lets it use: the physical memory, or the container's
+    limit when smaller (8 GiB where neither can be read)."""
     try:
-        return int(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+        total = int(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
     except (AttributeError, ValueError, OSError):
-        return 8 * 2**30
+        total = 8 * 2**30
+    for path in CGROUP_LIMITS:
+        try:
+            with open(path) as f:
+                text = f.read().strip()
+        except OSError:
+            continue
+        if text.isdigit() and 0 < int(text) < total:
+            total = int(text)
+        break
+    return total
 
 
 def peak_mib() -> float:

@@ -87,8 +87,9 @@ class Watch:
                 and t - self._saved >= CHECKPOINT_SECONDS):
             self.store.checkpoint(sol)
             self._saved = time.perf_counter()
-            self._open = None
-        elif self.store is not None and sol.queued:
+            if self.store.continuable(sol):
+                self._open = None           # saved; a closed (final) state keeps the snapshot
+        elif self.store is not None and self.store.continuable(sol):
             self._open = _snapshot(sol)
         self._publish(sol, t)
         self.seconds += time.perf_counter() - t

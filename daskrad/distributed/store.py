@@ -13,8 +13,9 @@ Only the client writes; workers open it read-only, so every chunk has one writer
     vertex_radiance, vertex_radiance_direct (vertex, rgb) f4, vertex_radiosity (vertex, rgb) f4
     internal/checkpoint/{0,1,2}                       the exact solver state (f8), three slots
                                                       written in turn
-    internal/context/{shoot,direct,render}            what the worker tasks (and
-                                                      ``daskrad render``/``export``) read
+    internal/context/{shoot,direct,gather,render}/blob  what the worker tasks (and
+                                                      ``daskrad render``/``export``) read,
+                                                      each context's arrays in one blob
 
 Root attributes: ``format``, ``daskrad`` (version), ``settings``, ``inputs`` (the fingerprint of
 what the solution depends on, :func:`fingerprint`), ``generation``, ``iteration``,
@@ -109,8 +110,9 @@ SCHEMA = {
                                      "light travels"),
     "lights/directional_irradiance": (("directional_light", "rgb"), "W m-2", "irradiance on a "
                                       "surface facing the light"),
-    "vertex_radiance": (("vertex", "rgb"), "W m-2 sr-1", "radiance B/pi at the vertices as "
-                        "the image interpolates it: ambient term added, T-vertices resolved"),
+    "vertex_radiance": (("vertex", "rgb"), "W m-2 sr-1", "radiance B/pi at the vertices, "
+                        "ambient term added, T-vertices resolved (the solution's, before a "
+                        "view's junction gather)"),
     "vertex_radiance_direct": (("vertex", "rgb"), "W m-2 sr-1", "the direct part of "
                                "vertex_radiance: (emission + rho H)/pi at the vertex"),
     "vertex_radiosity": (("vertex", "rgb"), "W m-2", "pi * vertex_radiance"),
@@ -376,6 +378,11 @@ class Store:
 
     # --- checkpoints ----------------------------------------------------------------------
 
+    def continuable(self, sol: Solution) -> bool:
+        """Whether a run with a smaller tolerance or more iterations could continue from
+        ``sol`` (it is the state of a straight run that had not stopped: :func:`_open`)."""
+        return _open(sol, self.settings)
+
     @_whole
     def checkpoint(self, sol: Solution) -> None:
         """Write the exact solver state into the slot not holding the last checkpoint.
@@ -465,8 +472,9 @@ class Store:
                 # resuming to it would throw the store's answer away)
                 tighter = same or (tol <= a.get("tolerance", -1.0)
                                    and maxit >= a.get("max_iterations", 1 << 62))
-            usable = same or (tighter and a.get("open") and tol <= a["tolerance"]
-                              and _fits(a["iteration"], a["queued"], self.settings))
+            usable = tighter and (same or (a.get("open") and tol <= a["tolerance"]
+                                           and _fits(a["iteration"], a["queued"],
+                                                     self.settings)))
             tried.append(a)
             if not usable:
                 continue
@@ -506,9 +514,10 @@ class Store:
     @_whole
     def finish(self, image) -> None:
         """The rendered result (after the final checkpoint, which
-        :class:`~daskrad.distributed.monitor.Watch` writes): the vertex radiance the image
-        interpolates and its direct part, the camera and the render context (``daskrad
-        render`` and ``daskrad export`` read it back), then ``complete``."""
+        :class:`~daskrad.distributed.monitor.Watch` writes): the vertex radiance (the
+        solution's, before the view's junction gather) and its direct part, the camera and the
+        render context (``daskrad render`` and ``daskrad export`` read it back; it carries the
+        gather, applied per view), then ``complete``."""
         ctx = image.context
         vertex_direct = image.vertex_direct
         g = self.group
@@ -602,10 +611,13 @@ def load_context(path: str, kind: str, token: str | None = None):
             dtype = np.dtype(f["dtype"])
             if dtype.kind not in "biuf":     # numbers only: bytes never become objects
                 raise TypeError(dtype)
-            count = int(np.prod(f["shape"], dtype=np.int64))
-            a = blob[f["offset"]:f["offset"] + count * dtype.itemsize].view(dtype)
-            a = a.reshape(f["shape"])
-        except (KeyError, TypeError, ValueError) as err:
+            shape = [int(n) for n in f["shape"]]
+            offset = int(f["offset"])
+            nbytes = math.prod(shape) * dtype.itemsize
+            if min(shape, default=0) < 0 or offset < 0 or offset + nbytes > len(blob):
+                raise ValueError("outside the blob")
+            a = blob[offset:offset + nbytes].view(dtype).reshape(shape)
+        except (KeyError, TypeError, ValueError, OverflowError) as err:
             raise StoreError(f"internal/context/{kind}: field {name} is missing or does not "
                              "fit its blob", path) from err
         if _digest(a) != digests.get(name):

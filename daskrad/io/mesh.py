@@ -1,7 +1,7 @@
 """The baked lighting as a mesh file: ``daskrad export`` (PLY, glTF binary, OBJ via trimesh).
 
-Every vertex carries its radiance ``L = B / π`` as the renderer interpolates it (ambient term
-added, T-vertices resolved), linear, plus a colour for viewers:
+Every vertex carries its radiance ``L = B / π`` (ambient term added, T-vertices resolved; the
+solution's, without any view's junction gather), linear, plus a colour for viewers:
 
 - **PLY**: ``red, green, blue, alpha`` (uchar, sRGB-encoded display colour, what MeshLab and
   CloudCompare show) and ``radiance_0..2`` (float32, linear radiance, W·m⁻²·sr⁻¹ per the
