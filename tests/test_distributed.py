@@ -232,10 +232,11 @@ def test_lit_room_direct_pass_same_bits_in_process_and_on_two_workers(tmp_path, 
     assert_same_run(a, b)
 
 
-def test_a_patch_shoots_again_on_the_worker_that_holds_its_row(cluster_client, tmp_path):
-    # issue 12: each worker keeps the rows it computed; a re-shot sent elsewhere computes the
-    # row again. The second time a batch shoots, every row is a cache hit, and the rows are
-    # the bits of the first time (and of the in-process executor)
+def test_a_patch_shoots_again_from_the_row_the_client_or_its_worker_kept(cluster_client,
+                                                                         tmp_path):
+    # issue 12: the client keeps the rows it received, so a re-shot is no task at all; a row
+    # the client dropped goes back to the worker that computed it, which kept it. Either way
+    # the rows are the bits of the first time (and of the in-process executor)
     from daskrad.distributed.executor import InProcess
     from daskrad.formfactor import shooting
 
@@ -250,13 +251,21 @@ def test_a_patch_shoots_again_on_the_worker_that_holds_its_row(cluster_client, t
     ids = np.arange(12)
     first = executor.shots(0, ids).result()
     before = cluster_client.run(worker.state)
+    tasks = executor.stats["tasks"]
     again = executor.shots(1, ids[::-1]).result()
+    assert executor.stats["tasks"] == tasks                 # all from the client's rows
+    # the new rows of the first batch were shared out: both workers computed some
+    assert all(before[w]["row_misses"] > 0 for w in before)
+    # a client that kept no row sends each re-shot to the worker that computed it
+    executor.rows = shooting.RowCache(max_bytes=0)
+    third = executor.shots(2, ids).result()
     after = cluster_client.run(worker.state)
     hits = sum(after[w]["row_hits"] - before[w]["row_hits"] for w in after)
     misses = sum(after[w]["row_misses"] - before[w]["row_misses"] for w in after)
     assert (hits, misses) == (12, 0)
-    # the new rows of the first batch were shared out: both workers computed some
-    assert all(before[w]["row_misses"] > 0 for w in before)
+    for a, b in zip(first, third, strict=True):
+        for x, y in zip(a, b, strict=True):
+            np.testing.assert_array_equal(x, y)
     local = InProcess(ctx).shots(0, ids).result()
     for a, b, c in zip(first, again[::-1], local, strict=True):
         for x, y, z in zip(a, b, c, strict=True):

@@ -24,7 +24,7 @@ import numpy as np
 
 from daskrad import render
 from daskrad.distributed import worker
-from daskrad.distributed.memory import peak_mib
+from daskrad.distributed.memory import peak_mib, physical_memory
 from daskrad.distributed.store import Store
 from daskrad.errors import OptionError
 from daskrad.formfactor import shooting
@@ -39,26 +39,36 @@ ROUTES_MODULE = "daskrad.distributed.dashboard"
 
 
 class _Batch:
-    """A batch's futures (one per worker); ``result()`` gives the rows in shooter order.
+    """A batch's futures; ``result()`` gives the rows in shooter order.
 
-    ``order[k]`` is the position in the batch of the ``k``-th row the futures return, in
-    future order (a future computes the shooters one worker holds)."""
+    ``rows`` holds the rows the client already has (position → row); ``groups[k]`` are the
+    positions in the batch of the shooters future ``k`` computes. Each future answers
+    ``(worker address, rows)``: ``owner`` (patch id → address) learns where each row is kept,
+    and the client's ``cache`` keeps it for the patch's next shot."""
 
-    def __init__(self, futures: list, stats: dict, order: list[int]):
+    def __init__(self, futures: list, stats: dict, groups: list[list[int]], ids: np.ndarray,
+                 owner: dict, rows: dict, cache: shooting.RowCache):
         self.futures = futures
         self.stats = stats
-        self.order = order
+        self.groups = groups
+        self.ids = ids
+        self.owner = owner
+        self.rows = rows
+        self.cache = cache
 
     def result(self) -> list:
         t = time.perf_counter()
-        rows = []
-        for future in self.futures:
-            rows.extend(future.result())
+        out = [self.rows.get(k) for k in range(len(self.ids))]
+        for future, group in zip(self.futures, self.groups, strict=True):
+            where, rows = future.result()
+            for k, row in zip(group, rows, strict=True):
+                out[k] = row
+                p = int(self.ids[k])
+                self.cache.put(p, row)
+                if where is not None:
+                    self.owner[p] = where
         self.stats["wait"] += time.perf_counter() - t
         self.futures = []                  # release: the scheduler forgets the keys
-        out = [None] * len(rows)
-        for k, row in zip(self.order, rows, strict=True):
-            out[k] = row
         return out
 
 
@@ -91,6 +101,7 @@ class DaskExecutor:
         self.workers = 0
         self.addresses: list[str] = []     # the workers' addresses, sorted
         self.owner: dict[int, str] = {}
+        self.rows = shooting.RowCache()    # rows the client received (set_geometry sizes it)
         self._counted = -float("inf")
         self._count_workers()
         self.dashboard_link = _dashboard(client)
@@ -114,43 +125,55 @@ class DaskExecutor:
         token = self.store.put_context("shoot", shoot_ctx)
         self.geometry = (generation, token)
         self.owner = {}                    # patch id -> the worker holding its row
+        self.rows = shooting.RowCache(shooting.row_cache_bytes(shoot_ctx, physical_memory()))
         self._probe("shoot", token)
         self.phase("shooting", 0.0, force=True)
 
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Batch:
-        """Batch ``batch_no``: one task per worker, each computing the shooters it holds.
+        """Batch ``batch_no``: the rows the client keeps, one task per new row, and one per
+        worker for the re-shots it holds.
 
-        A patch shoots about five times in a converging solve, and its row, kept by the worker
-        that computed it (:class:`~daskrad.formfactor.shooting.RowCache`), costs nothing the
-        next time there. So a patch goes back to the worker that computed its row; a patch
-        never shot (or whose worker left) goes to the worker with the fewest new rows in this
-        batch. The rows are the same bits wherever they are computed: this decides only where
-        the work runs (a soft restriction: a busy or lost worker's shots may run elsewhere).
+        A patch shoots about five times in a converging solve. The client keeps every row it
+        received (:class:`~daskrad.formfactor.shooting.RowCache`, sized like the workers'), so
+        a re-shot costs no task and no transfer (the Cornell box at 73,000 elements: rows of
+        ~0.5 MB, 1,275 re-shots). A row the client dropped but a worker kept goes back to that
+        worker in one task per worker (a soft restriction: a lost or busy worker's may run
+        elsewhere, and compute the row again).
+        A row never computed is a task of its own, placed by the scheduler: rows differ in
+        cost by up to 6× (penumbra sampling), and single tasks keep both workers busy where a
+        fixed share of the batch per worker left one waiting. Where a row was computed is
+        learnt from the task's answer. The rows are the same bits wherever they are computed.
         """
         generation, token = self.geometry
         self._count_workers()
         ids = np.asarray(patch_ids, np.int64)
-        addresses = self.addresses or [None]
-        new_rows = dict.fromkeys(addresses, 0)
-        groups: dict = {a: [] for a in addresses}
+        alive = set(self.addresses)
+        held: dict = {}
+        new: list[int] = []
+        have: dict = {}
         for k, p in enumerate(ids.tolist()):
+            row = self.rows.get(p)
             a = self.owner.get(p)
-            if a not in new_rows:
-                a = min(addresses, key=lambda w: new_rows[w])   # first of the least loaded
-                new_rows[a] += 1
-                self.owner[p] = a
-            groups[a].append(k)
-        futures, order = [], []
-        for n, a in enumerate(addresses):
-            if not groups[a]:
-                continue
+            if row is not None:
+                have[k] = row
+            elif a in alive:
+                held.setdefault(a, []).append(k)
+            else:
+                new.append(k)
+        futures, groups = [], []
+        for n, a in enumerate(sorted(held)):
             futures.append(self.client.submit(
-                worker.shoot_task, self.store.path, generation, token, ids[groups[a]],
-                key=f"formfactor-{generation}-{batch_no}-{n}-{self.run}", pure=False,
-                workers=None if a is None else [a], allow_other_workers=True))
-            order.extend(groups[a])
+                worker.shoot_task, self.store.path, generation, token, ids[held[a]],
+                key=f"formfactor-{generation}-{batch_no}-held{n}-{self.run}", pure=False,
+                workers=[a], allow_other_workers=True))
+            groups.append(held[a])
+        for k in new:
+            futures.append(self.client.submit(
+                worker.shoot_task, self.store.path, generation, token, ids[[k]],
+                key=f"formfactor-{generation}-{batch_no}-new{k}-{self.run}", pure=False))
+            groups.append([k])
         self.stats["tasks"] += len(futures)
-        return _Batch(futures, self.stats, order)
+        return _Batch(futures, self.stats, groups, ids, self.owner, have, self.rows)
 
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
         generation = self.geometry[0] if self.geometry else 0
@@ -193,9 +216,11 @@ class DaskExecutor:
         return self._gather("rendering", futures, "junction gather: ")
 
     def memory(self) -> dict:
-        """Peak memory of the client and of each worker (MiB), and each worker's row cache."""
+        """Peak memory of the client and of each worker (MiB), and the row caches."""
         states = self.client.run(worker.state)
         return {"client_peak_mib": peak_mib(),
+                "row_cache_mib": self.rows.nbytes / 2**20,
+                "row_cache_limit_mib": self.rows.max_bytes / 2**20,
                 "workers": [{k: states[a][k] for k in ("peak_mib", "row_cache_mib",
                                                        "row_cache_limit_mib")}
                             for a in sorted(states)]}

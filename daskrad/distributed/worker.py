@@ -48,10 +48,11 @@ def context(path: str, kind: str, generation: int, token: str):
     return ctx
 
 
-def shoot_task(path: str, generation: int, token: str, patch_ids: np.ndarray) -> list:
-    """Form-factor rows of the shooters ``patch_ids``
+def shoot_task(path: str, generation: int, token: str, patch_ids: np.ndarray
+               ) -> tuple[str | None, list]:
+    """``(this worker's address, rows)``: the form-factor rows of the shooters ``patch_ids``
     (:func:`daskrad.formfactor.shooting.shoot_rows`), with the rows this process already
-    computed for that geometry."""
+    computed for that geometry (the client sends a re-shot back where its row is kept)."""
     key = (path, generation, token)
     ctx = context(path, "shoot", generation, token)
     with _lock:
@@ -60,7 +61,17 @@ def shoot_task(path: str, generation: int, token: str, patch_ids: np.ndarray) ->
             rows = _rows[key] = shooting.RowCache(shooting.row_cache_bytes(ctx, memory()))
             while len(_rows) > 1:           # only the current geometry shoots
                 _rows.popitem(last=False)
-    return shooting.shoot_rows(ctx, patch_ids, rows)
+    return address(), shooting.shoot_rows(ctx, patch_ids, rows)
+
+
+def address() -> str | None:
+    """This worker's address (None outside a Dask worker)."""
+    try:
+        from distributed import get_worker
+
+        return get_worker().address
+    except (ImportError, ValueError):
+        return None
 
 
 def memory() -> int:
