@@ -58,14 +58,20 @@ SIZE = 128
 REFERENCE_SPP = 2048
 REPEATS = 3
 
-#: daskrad settings timed against their error (Settings fields; the image is SIZE × SIZE).
+#: daskrad settings timed against their error (Settings fields; the image is SIZE × SIZE;
+#: ``element_scale`` multiplies the scene's automatic element size, so a setting means the
+#: same mesh density in the Cornell box and the lit room). The error is per pixel, and much
+#: of it is where the two renderers sample a pixel differently (silhouettes, the light's
+#: outline): the samples-per-pixel rows show what antialiasing buys.
 CONFIGS = {
     "default": {},
     "R 100": {"resolution": 100},
-    "coarse elements": {"element_size": 60.0},
-    "fine elements": {"element_size": 15.0},
+    "coarse elements": {"element_scale": 2.0},
+    "fine elements": {"element_scale": 0.5},
     "no per-pixel pass": {"per_pixel": False},
     "tolerance 1e-2": {"tolerance": 1e-2},
+    "16 samples/pixel": {"spp": 16},
+    "64 samples/pixel": {"spp": 64},
 }
 #: Path-tracer samples per pixel (seed 7: independent of the reference's seeds).
 PT_SPP = (16, 64, 256, 1024)
@@ -107,8 +113,14 @@ def timed_run(scene: Path, settings: Settings, repeats: int = REPEATS) -> dict:
 
 
 def time_vs_error(scene: Path, ref: np.ndarray, configs: dict, spps: tuple) -> list[dict]:
+    from daskrad.mesh import default_sizes
+
     rows = []
+    element = default_sizes(load_scene(scene))[1]
     for name, opts in configs.items():
+        opts = dict(opts)
+        if "element_scale" in opts:
+            opts["element_size"] = element * opts.pop("element_scale")
         r = timed_run(scene, Settings(width=SIZE, height=SIZE, workers=0, **opts))
         rep = r["report"]
         rows.append({"renderer": "daskrad", "config": name, "seconds": r["seconds"],

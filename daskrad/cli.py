@@ -120,8 +120,8 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
                                                       "(default: the file's first)")
     where = run.add_mutually_exclusive_group()
     where.add_argument("--workers", type=_nonneg_int,
-                       help="local worker processes (0: in-process; default: in-process below "
-                            "~20k elements, else 2)")
+                       help="local worker processes with the Dask dashboard (default 0: in-process "
+                            "on a thread per core, faster on one machine)")
     where.add_argument("--scheduler", help="address of an existing Dask scheduler, tcp://HOST:PORT")
     run.add_argument("--method", help=f"form-factor method, {methods}{_default('method')}")
     run.add_argument("--resolution", type=_positive_int,
