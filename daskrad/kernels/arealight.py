@@ -298,12 +298,7 @@ def _light_window(ex, ey, ez, n, corners, count, en, hz, r, cos_thr, tab, lx, ly
     nothing to measure), 2 when it is too thin for a pixel centre (one centroid ray decides).
     """
     t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(n[0], n[1], n[2])
-    cx = scr[0]
-    cy = scr[1]
-    cz = scr[2]
-    qx = scr[3]
-    qy = scr[4]
-    qz = scr[5]
+    cx, cy, cz, qx, qy, qz = scr[0], scr[1], scr[2], scr[3], scr[4], scr[5]
     for a in range(count):
         wx = corners[a, 0] - ex
         wy = corners[a, 1] - ey
@@ -383,12 +378,7 @@ def _occlude(grid, ex, ey, ez, n, cand, s0, s1, hz, r, cos_thr, tab, lx, ly, lz,
     are drawn in.
     """
     t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(n[0], n[1], n[2])
-    cx = scr[0]
-    cy = scr[1]
-    cz = scr[2]
-    qx = scr[3]
-    qy = scr[4]
-    qz = scr[5]
+    cx, cy, cz, qx, qy, qz = scr[0], scr[1], scr[2], scr[3], scr[4], scr[5]
     tris = grid.triangles
     ev[0, 0] = 0
     ev[0, 1] = 1
