@@ -703,15 +703,19 @@ def _hard_part(dctx, tvertices, elem_verts: np.ndarray, elem_reflectance: np.nda
 
 
 #: A vertex is beside a junction when another surface lies within ``JUNCTION_REACH`` element
-#: sizes in its hemisphere (one of 4 × 4 probe rays); its indirect light is then gathered over
-#: ``GATHER_SIDE²`` stratified rays. The error gathered away is that of a constant element
-#: whose light changes within it, so the reach scales with the element size (the automatic
-#: size is 1/32 of the diagonal: 0.64 of it is 2 % of the diagonal). Measured on the Cornell
-#: box meshed to 73,000 elements (size 7): a reach of 2 % of the diagonal gathered at 9,091
-#: vertices (24 s, 95 % of the render), 0.64 element sizes at 3,668 (8.6 s); the error against
-#: the path tracer (128², off the light) moved from 0.0762 to 0.0766 at size 7.5 and from
-#: 0.0765 to 0.0766 at size 15 (the default size keeps its bits).
-JUNCTION_REACH = 0.64
+#: sizes in its hemisphere (one of 4 × 4 probe rays); its indirect light is then gathered.
+#: The error gathered away is that of elements whose light changes within them, and it
+#: reaches about two elements out from a junction (point-lit closed box, path-traced floor
+#: points: the block's shadowed foot elements +60 %, the floor element beside them +18 %, the
+#: next +10 %), so the reach scales with the element size: one element, whose vertices (with
+#: the other corners of their elements) cover the two elements beside the junction. Measured
+#: (bench_shadows, 24² rays): 0.64 element sizes (2 % of the diagonal at the automatic size)
+#: left the point-lit box's worst contact row at +6.4 %, 1.0 gives +4.1 % (+5.5 % at 32²
+#: rays: the row moves with the gather's own noise); the other scenes' figures and the
+#: Cornell box's error do not move; the Cornell box's render takes ~12 % longer. At 73,000
+#: elements a reach of 2 % of the diagonal (9 element sizes) gathered at 9,091 vertices for
+#: 24 s of a 25 s render.
+JUNCTION_REACH = 1.0
 #: Measured against the path tracer (bench_shadows; Cornell box 128², off the light), side 16 /
 #: 24 / 32 with two correction passes: sun-lit open box contact 4.1 / 4.3 / 4.2 %, point-lit
 #: closed box worst contact row 7.0 / 6.4 / 7.2 %, Cornell box 0.07699 / 0.07694 / 0.07691:
@@ -725,6 +729,14 @@ GATHER_SIDE = 24
 #: 1–3; the floor row at the short block's foot goes +14 % → +1 % against the path tracer.
 GATHER_PASSES = 2
 
+
+#: A scene with at most this many vertices to gather gathers them all, whatever the view; one
+#: with more gathers only those near what the view shows (:func:`for_view`). The whole gather
+#: is the more accurate (a shown vertex sees hidden junctions corrected too: the lit room's
+#: contact pixels 2.6 % against 3.4 % with the view's), the view's the cheaper in a furnished
+#: interior (graz: the whole gather took 445 s of a 538 s render). 20,000 vertices are ~17
+#: million rays, ~10 s on 2 cores; the Cornell box's default mesh gathers ~2,900.
+GATHER_ALL = 20_000
 
 #: Junction vertices per ``gather-…`` task (~0.05–0.2 s each: 576 rays a vertex, then 2 × 144).
 GATHER_BATCH = 128
@@ -865,11 +877,12 @@ def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
     junction (floor and block face) light each other, and the first pass saw both with their
     averaged values.
 
-    ``region (E,) bool``: only the corners of these elements are gathered (:func:`for_view`:
-    the elements the image shows and their neighbours): the gather is part of the
-    view-dependent pass. An office's furniture puts most vertices beside a junction, and most
-    are out of view (graz: the whole scene's gather took 445 s of a 538 s render, the view's
-    1.3 s of 114 s). None: every vertex. Within the region the first pass is that of a whole
+    ``region (E,) bool``: when more than :data:`GATHER_ALL` vertices are to be gathered,
+    only the corners of these elements are (:func:`for_view`: the elements the image shows
+    and their neighbours): the gather is then part of the view-dependent pass. An office's
+    furniture puts most vertices beside a junction, and most are out of view (graz: the whole
+    scene's gather took 445 s of a 538 s render, the view's 1.3 s of 114 s). None: every
+    vertex. Within the region the first pass is that of a whole
     gather; the correction passes gather the change at the region's vertices only, so a
     shown vertex near the frame's edge may differ from a whole gather's by what the change
     beyond the region would have sent it (the wall-on-floor test scene, zoomed from a 40° to
@@ -882,11 +895,7 @@ def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
     V = len(ctx.vertex_radiance)
     delta = np.zeros((V, 3))
     elem_verts = j.elem_verts
-    used = np.zeros(V, bool)
-    shown = elem_verts if region is None else elem_verts[region]
-    used[shown[shown >= 0]] = True
-    used &= j.gatherable
-    cand = np.flatnonzero(used)
+    cand = np.flatnonzero(j.gatherable)
     if len(cand) == 0:
         return delta
     near = near_surface(ctx.grid, j.points[cand], j.normals[cand], j.offset, j.reach, 4)
@@ -897,7 +906,15 @@ def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
     touching = (beside[np.where(valid, elem_verts, 0)] & valid).any(axis=1)
     gathered = np.zeros(V, bool)
     gathered[elem_verts[touching][valid[touching]]] = True
-    idx = np.flatnonzero(gathered & used)
+    gathered &= j.gatherable
+    if region is not None and gathered.sum() > GATHER_ALL:
+        # too many for the whole scene: the region's only (whether a vertex is gathered
+        # does not depend on the region, only which are)
+        shown = np.zeros(V, bool)
+        ev = elem_verts[region]
+        shown[ev[ev >= 0]] = True
+        gathered &= shown
+    idx = np.flatnonzero(gathered)
     if len(idx) == 0:
         return delta
     gctx = GatherContext(grid=ctx.grid, tri_verts=ctx.tri_verts, tri_element=ctx.tri_element,
