@@ -27,7 +27,7 @@ def auto_workers(scene, settings) -> int:
     """``--workers`` not given: 0, in-process on a thread per core (docs/design.md §4).
 
     On one machine the threads win at every size measured (``bench_speed``, whole runs of the
-    Cornell box at 73,000 elements on 2 cores: 24.7 s in-process, 34.5 s on 2 workers, 53.2 s
+    Cornell box at 73,000 elements on 2 cores: 26.5 s in-process, 36.7 s on 2 workers, 54.6 s
     on 1): the kernels release the GIL, and a LocalCluster pays its start, the store's task
     contexts and the transfers. A cluster is for more than one machine (``--scheduler``) or
     for watching the dashboard (``--workers N``). ``scene`` and ``settings`` are kept for a
