@@ -376,11 +376,17 @@ def element_mean(h: Hierarchy, vertex_values: np.ndarray) -> np.ndarray:
 
 def vertex_reflectance(h: Hierarchy, reflectance: np.ndarray) -> np.ndarray:
     """``(V, 3)``: the reflectance of each vertex's polygon (elements of one polygon share it)."""
-    out = np.zeros((len(h.vertices), reflectance.shape[1]))
-    ev = h.elem_verts
-    used = ev >= 0
-    owner = np.broadcast_to(np.arange(len(ev))[:, None], ev.shape)[used]
-    out[ev[used]] = reflectance[owner]
+    return corner_values(h.elem_verts, len(h.vertices), reflectance)
+
+
+def corner_values(elem_verts: np.ndarray, n_vertices: int, values: np.ndarray) -> np.ndarray:
+    """``(n_vertices, k)``: each vertex takes ``values (E, k)`` of an element it is a corner
+    of (the last in element order; 0 for a vertex of none). Meant for values an element shares
+    with its neighbours at the vertex (a polygon's reflectance)."""
+    out = np.zeros((n_vertices, values.shape[1]))
+    used = elem_verts >= 0
+    owner = np.broadcast_to(np.arange(len(elem_verts))[:, None], elem_verts.shape)[used]
+    out[elem_verts[used]] = values[owner]
     return out
 
 

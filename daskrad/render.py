@@ -693,10 +693,7 @@ def _hard_part(dctx, tvertices, elem_verts: np.ndarray, elem_reflectance: np.nda
         return None, None
     bare = direct.without_emitters(dctx)
     H = direct.compute(bare, 0, len(dctx.points))
-    used = elem_verts >= 0
-    owner = np.broadcast_to(np.arange(len(elem_verts))[:, None], elem_verts.shape)[used]
-    rho = np.zeros((len(H), 3))
-    rho[elem_verts[used]] = elem_reflectance[owner]
+    rho = direct.corner_values(elem_verts, len(H), elem_reflectance)
     tv = tvertices if tvertices is not None else TVertices.empty()
     vertex_hard = resolve_tvertices(rho * H, tv) / math.pi
     return direct.lights_of(bare), vertex_hard
@@ -801,14 +798,10 @@ def junctions_of(dctx, tvertices, elem_verts: np.ndarray, elem_reflectance: np.n
     with (evaluation points, normals, offset, whether emitters were gathered), ``tvertices``
     its T-vertices (never gathered: they keep their edge's values, no seam)."""
     V = len(vertex_indirect)
-    valid = elem_verts >= 0
-    gatherable = np.zeros(V, bool)
-    gatherable[elem_verts[valid]] = True
+    gatherable = _corners(elem_verts, elem_verts >= 0, V)
     tv = tvertices if tvertices is not None else TVertices.empty()
     gatherable[tv.vertex] = False
-    owner = np.broadcast_to(np.arange(len(elem_verts))[:, None], elem_verts.shape)
-    rho = np.zeros((V, 3))
-    rho[elem_verts[valid]] = elem_reflectance[owner[valid]]
+    rho = direct.corner_values(elem_verts, V, elem_reflectance)
     exclude = (np.ascontiguousarray(elem_emission, dtype=np.float64)
                if len(dctx.emitter_corners) else np.zeros((len(elem_reflectance), 3)))
     return Junctions(points=np.ascontiguousarray(dctx.area_points, dtype=np.float64),
@@ -832,18 +825,7 @@ def for_view(ctx: RenderContext, executor=None) -> RenderContext:
     if j is None:
         return ctx
     everywhere = j.everywhere or ctx.camera is None      # no view: gather what any may show
-    region = None
-    if not everywhere:
-        # the elements the view shows and every element sharing a corner with them: a
-        # shown corner's first pass then depends on nothing outside (whether it is beside a
-        # junction, or a corner of an element that has such a corner), as in a whole gather
-        seen = seen_elements(ctx)
-        shown = np.zeros(len(ctx.vertex_radiance), bool)
-        ev = j.elem_verts[seen]
-        shown[ev[ev >= 0]] = True
-        region = (shown[np.where(j.elem_verts >= 0, j.elem_verts, 0)]
-                  & (j.elem_verts >= 0)).any(axis=1)
-    delta = _junction_gather(ctx, j, executor, region)
+    delta = _junction_gather(ctx, j, executor, view=not everywhere)
     out = replace(ctx, vertex_radiance=ctx.vertex_radiance + delta, junctions=None)
     if ctx.vertex_indirect is not None:
         out = replace(out, vertex_indirect=ctx.vertex_indirect + delta)
@@ -852,8 +834,22 @@ def for_view(ctx: RenderContext, executor=None) -> RenderContext:
     return out
 
 
+def _corners(elem_verts: np.ndarray, elements: np.ndarray, n_vertices: int) -> np.ndarray:
+    """``(V,) bool``: the corners of the elements ``elements (E,) bool``."""
+    out = np.zeros(n_vertices, bool)
+    ev = elem_verts[elements]
+    out[ev[ev >= 0]] = True
+    return out
+
+
+def _touching(elem_verts: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """``(E,) bool``: the elements with a corner among ``vertices (V,) bool``."""
+    valid = elem_verts >= 0
+    return (vertices[np.where(valid, elem_verts, 0)] & valid).any(axis=1)
+
+
 def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
-                     region: np.ndarray | None = None) -> np.ndarray:
+                     view: bool = False) -> np.ndarray:
     """``(V, 3)``: the change of vertex radiance when the indirect light of the vertices
     beside a junction is gathered (:mod:`daskrad.kernels.gather`) instead of averaged from
     their elements: ``ρ · mean(L)`` over cosine-distributed rays from the vertex, ``L`` the
@@ -877,12 +873,13 @@ def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
     junction (floor and block face) light each other, and the first pass saw both with their
     averaged values.
 
-    ``region (E,) bool``: when more than :data:`GATHER_ALL` vertices are to be gathered,
-    only the corners of these elements are (:func:`for_view`: the elements the image shows
-    and their neighbours): the gather is then part of the view-dependent pass. An office's
-    furniture puts most vertices beside a junction, and most are out of view (graz: the whole
-    scene's gather took 445 s of a 538 s render, the view's 1.3 s of 114 s). None: every
-    vertex. Within the region the first pass is that of a whole
+    ``view``: when more than :data:`GATHER_ALL` vertices are to be gathered, only the corners
+    of the region of the view are (the elements the image shows, :func:`seen_elements`, and
+    every element sharing a corner with them: a shown corner's first pass then depends on
+    nothing outside, as in a whole gather): the gather is then part of the view-dependent
+    pass. An office's furniture puts most vertices beside a junction, and most are out of
+    view (graz: the whole scene's gather took 445 s of a 538 s render, the view's 1.3 s of
+    114 s). False: every vertex. Within the region the first pass is that of a whole
     gather; the correction passes gather the change at the region's vertices only, so a
     shown vertex near the frame's edge may differ from a whole gather's by what the change
     beyond the region would have sent it (the wall-on-floor test scene, zoomed from a 40° to
@@ -902,18 +899,12 @@ def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
     beside = np.zeros(V, bool)
     beside[cand[near]] = True
     # ... and the other corners of the elements with such a corner
-    valid = elem_verts >= 0
-    touching = (beside[np.where(valid, elem_verts, 0)] & valid).any(axis=1)
-    gathered = np.zeros(V, bool)
-    gathered[elem_verts[touching][valid[touching]]] = True
-    gathered &= j.gatherable
-    if region is not None and gathered.sum() > GATHER_ALL:
-        # too many for the whole scene: the region's only (whether a vertex is gathered
-        # does not depend on the region, only which are)
-        shown = np.zeros(V, bool)
-        ev = elem_verts[region]
-        shown[ev[ev >= 0]] = True
-        gathered &= shown
+    gathered = _corners(elem_verts, _touching(elem_verts, beside), V) & j.gatherable
+    if view and gathered.sum() > GATHER_ALL:
+        # too many for the whole scene: the view region's only (whether a vertex is gathered
+        # does not depend on the region, only which are); the primary rays are cast only here
+        shown = _corners(elem_verts, seen_elements(ctx), V)
+        gathered &= _corners(elem_verts, _touching(elem_verts, shown), V)
     idx = np.flatnonzero(gathered)
     if len(idx) == 0:
         return delta
