@@ -200,10 +200,10 @@ class DaskExecutor:
         return self._gather("direct light", futures)
 
     def gather(self, ctx: render.GatherContext, ranges: list[tuple[int, int]]
-               ) -> list[np.ndarray]:
-        """The junction gather over ranges of its vertices as ``gather-<generation>-<n>``
-        futures, in order. The context's token is in the key: a render gathers several times
-        (the correction passes) over the same ranges."""
+               ) -> list[render.GatherOperator]:
+        """The junction gather's operator rows over ranges of its vertices as
+        ``gather-<generation>-<n>`` futures, in order. The context's token is in the key: a
+        re-render with another view gathers other vertices over the same ranges."""
         generation = self.geometry[0] if self.geometry else 0
         token = self.store.put_context("gather", ctx)
         self._probe("gather", token)

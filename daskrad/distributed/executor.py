@@ -9,8 +9,8 @@ Both executors expose the same calls, so the pipeline is written once:
 - ``tiles(render_ctx, tiles)`` → list of tile images of :func:`daskrad.render.render_tile`;
 - ``direct(ctx, ranges)`` → list of direct irradiances of
   :func:`daskrad.direct.direct_vertices`, one per vertex range, in order;
-- ``gather(gather_ctx, ranges)`` → list of the junction gather's radiances of
-  :func:`daskrad.render.gather_vertices`, one per range of junction vertices, in order;
+- ``gather(gather_ctx, ranges)`` → list of the junction gather's operator rows
+  (:func:`daskrad.render.gather_vertices`), one per range of junction vertices, in order;
 - ``memory()`` → peak memory of the client and of every worker, and the row caches' use;
 - ``publish(key, value)``: progress for the dashboard (a no-op here);
 - ``close()``.
@@ -112,8 +112,8 @@ class InProcess:
         return self._map(lambda r: direct.direct_vertices(ctx, r[0], r[1]), ranges)
 
     def gather(self, ctx: render.GatherContext, ranges: list[tuple[int, int]]
-               ) -> list[np.ndarray]:
-        """The junction gather over ranges of its vertices
+               ) -> list[render.GatherOperator]:
+        """The junction gather's operator rows over ranges of its vertices
         (:func:`daskrad.render.gather_vertices`)."""
         return self._map(lambda r: render.gather_vertices(ctx, r[0], r[1]), ranges)
 

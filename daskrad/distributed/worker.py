@@ -107,8 +107,9 @@ def direct_task(path: str, generation: int, token: str, start: int, stop: int) -
     return direct.direct_vertices(context(path, "direct", generation, token), start, stop)
 
 
-def gather_task(path: str, generation: int, token: str, start: int, stop: int) -> np.ndarray:
-    """The junction gather at its vertices ``[start, stop)``
+def gather_task(path: str, generation: int, token: str, start: int, stop: int
+                ) -> render.GatherOperator:
+    """The junction gather's operator rows of its vertices ``[start, stop)``
     (:func:`daskrad.render.gather_vertices`)."""
     return render.gather_vertices(context(path, "gather", generation, token), start, stop)
 

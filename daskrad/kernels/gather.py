@@ -50,32 +50,51 @@ def near_surface(grid, points, normals, off, reach, side):
 
 
 @jit
-def gather_radiance(grid, tri_verts, tri_element, elem_normal, vertex_radiance, elem_exclude,
+def gather_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_vertices,
                     points, normals, seeds, off, side):
-    """``(n, 3) float64``: the mean radiance seen from each point over ``side²`` stratified,
-    jittered, cosine-distributed rays (irradiance ``H = π ·`` this).
+    """The gather as a sparse linear operator: ``mean(L)`` seen from each point over ``side²``
+    stratified, jittered, cosine-distributed rays is ``G · L − x`` for any vertex radiance
+    ``L (V, 3)`` (Gouraud over the hit triangle is linear in ``L``), so the rays are cast once
+    and every pass of the gather (the first, then the corrections that gather the change the
+    last one made) is a sparse product (:func:`apply_operator`).
 
     Parameters
     ----------
     tri_verts : (T, 3) int, tri_element : (T,) int
-        The grid triangles' vertices and elements; ``elem_normal (E, 3)`` their lit side.
-    vertex_radiance : (V, 3) float64
-        Radiance interpolated over the hit triangle (Gouraud); a back face or a miss is 0.
+        The grid triangles' vertices and elements; ``elem_normal (E, 3)`` their lit side: a
+        ray that meets a back face, or nothing, sees no radiance.
     elem_exclude : (E, 3) float64
         Radiance taken off a hit on that element (its emission, already counted as direct).
+    n_vertices : int
+        ``V``, the number of mesh vertices ``L`` is given at.
     points, normals : (n, 3) float64; seeds : (n,) int64 jitter seeds; off : the ray offset.
 
+    Returns
+    -------
+    indptr : (n + 1,) int64, cols : (nnz,) int64, weights : (nnz,) float64
+        Row ``i`` of ``G`` in CSR form: the barycentric weights of every hit, summed per mesh
+        vertex in the order the vertices were first hit, over ``side²`` (a point's row sums
+        to its fraction of rays that saw a front face).
+    excluded : (n, 3) float64
+        ``x``: the mean of ``elem_exclude`` over each point's rays.
+
     Serial: the callers split the points into ranges run side by side (threads in-process,
-    ``gather-…`` tasks on a cluster); each point's sum is the same whatever the split.
+    ``gather-…`` tasks on a cluster); each point's row is the same whatever the split.
     """
     n = points.shape[0]
-    out = np.zeros((n, 3))
     ss = side * side
+    cap = 3 * ss
+    indptr = np.zeros(n + 1, np.int64)
+    cols = np.empty(n * cap, np.int64)
+    weights = np.empty(n * cap)
+    excluded = np.zeros((n, 3))
+    slot = np.full(n_vertices, -1, np.int64)   # where a vertex sits in the current row
+    nnz = 0
     for i in range(n):
         nrm = normals[i]
         t, s = tangent_frame(nrm)
         o = points[i] + off * nrm
-        acc = np.zeros(3)
+        row = nnz
         for k in range(ss):
             u = ((k % side) + hash01(seeds[i], 2 * k)) / side
             v = ((k // side) + hash01(seeds[i], 2 * k + 1)) / side
@@ -87,12 +106,38 @@ def gather_radiance(grid, tri_verts, tri_element, elem_normal, vertex_radiance, 
             en = elem_normal[e]
             if d[0] * en[0] + d[1] * en[1] + d[2] * en[2] >= 0.0:
                 continue
-            w0 = 1.0 - bu - bv
             for c in range(3):
-                acc[c] += (w0 * vertex_radiance[tri_verts[tri, 0], c]
-                           + bu * vertex_radiance[tri_verts[tri, 1], c]
-                           + bv * vertex_radiance[tri_verts[tri, 2], c]
-                           - elem_exclude[e, c])
+                excluded[i, c] += elem_exclude[e, c]
+            for corner in range(3):
+                w = 1.0 - bu - bv if corner == 0 else (bu if corner == 1 else bv)
+                vtx = tri_verts[tri, corner]
+                if slot[vtx] < 0:
+                    slot[vtx] = nnz
+                    cols[nnz] = vtx
+                    weights[nnz] = w
+                    nnz += 1
+                else:
+                    weights[slot[vtx]] += w
+        for k in range(row, nnz):
+            slot[cols[k]] = -1
+            weights[k] /= ss
         for c in range(3):
-            out[i, c] = acc[c] / ss
+            excluded[i, c] /= ss
+        indptr[i + 1] = nnz
+    return indptr, cols[:nnz].copy(), weights[:nnz].copy(), excluded
+
+
+@jit
+def apply_operator(indptr, cols, weights, values):
+    """``(n, C) float64``: ``G · values`` for the CSR operator of :func:`gather_operator`
+    and ``values : (V, C)``; each row summed in its stored order (the same bits on any
+    split)."""
+    n = indptr.shape[0] - 1
+    m = values.shape[1]
+    out = np.zeros((n, m))
+    for i in range(n):
+        for k in range(indptr[i], indptr[i + 1]):
+            w = weights[k]
+            for c in range(m):
+                out[i, c] += w * values[cols[k], c]
     return out
