@@ -1,201 +1,326 @@
-"""Scaling of the shooting loop on Dask: system efficiency ``T(1) / (T(C) · C)`` (the paper's
-measure) for C = 1 and 2 worker processes, and a model for 8, 32 and 128 workers.
+"""Scaling on Dask (issues 4 and 12): system efficiency ``T(1) / (T(C) · C)`` (the paper's
+measure) of whole converging runs on C = 1 and C = 2 LocalCluster workers, per stage, and a
+model for 8, 32 and 128 workers built from the stages' measured shares.
 
-Scene: the Cornell box with 7-unit elements (~59,000 elements, 251 patches), emitters shot
-like any patch (no direct pass, so only the form-factor futures are timed). ``N`` shots in
-batches of ``K = 8``; ``T(C)`` is the wall time of :func:`daskrad.solve.solve` on a
-LocalCluster of ``C`` single-threaded processes after every worker has loaded the geometry
-(the per-process cache) and its numba kernels, with no form-factor row kept from an earlier
-run (``worker.forget_rows``); C = 1 and C = 2 alternate, best of three.
+**Measured.** ``T(C)`` is the wall time of a whole run (:func:`daskrad.run.run` through
+:func:`benchmarks.bench_speed.whole_run`, as bench_speed's workers table) of a scene of
+≥ 50k elements: the Cornell box with 7-unit elements by default (~59,000 elements, ~73,000
+after adaptive subdivision; ``--scene PATH`` and ``--element-size`` for others), converged to
+the default tolerance (re-shots included), on a LocalCluster of C single-threaded processes.
+The cluster is started and closed by this benchmark around each run (so its task stream can be
+read before it closes), and both are in ``T(C)``. Every run is a fresh cluster (its workers
+load the geometry and their numba kernels from the on-disk cache inside the run); one untimed
+run before the timed ones loads the client's kernels. C = 1 and C = 2 alternate, ``--repeats``
+times (default 3); each figure is the median of its repeats.
 
-Shares, from Dask's task stream and the executor's own clock:
+Stages, from the run report's step times: ``direct`` (direct light and adaptive subdivision),
+``solve`` (the shooting), ``render`` (the per-pixel pass: junction gathers and tiles) and
+``rest`` = ``T(C)`` − those three: load and preprocess, the cluster's start and close, the
+store, the report and image files. (With the cluster started here, the report's ``direct`` no
+longer includes its start.)
 
-- kernels: ``Σ compute seconds of formfactor tasks / (C · T)``, the workers' useful time;
-- client: ``(T − time waiting for results) / T``, the client applying shots in order, choosing
-  and submitting the next batch (with two batches in flight it overlaps the workers);
-- scheduling: ``1 − kernels``, worker time spent outside kernels (dispatch, result transfer,
-  waiting for the client).
+**Derived.** Per stage, an Amdahl fit through its two medians, ``T(C) = serial + parallel / C``:
+``parallel = 2 (T(1) − T(2))`` clipped to ``[0, T(1)]`` and ``serial = T(1) − parallel``; the
+shares are those over ``T(1)`` of the stage. A stage slower on two workers than on one
+(cores shared with the client, a larger cluster to start) is thus all serial at its ``T(1)``,
+and one more than twice as fast all parallel. The measured efficiency is the whole run's,
+``T(1) / (2 T(2))`` with median wall times.
 
-Model (two batches in flight, a batch split into ``P = min(C, K)`` tasks): per batch
-``t = max(K·s / P + f + q / P + p·(P − 1), K·a)`` with ``s`` kernel seconds per shot and ``a``
-client seconds per shot (measured at C = 1), a per-batch overhead ``f + q / P`` fitted to the
-C = 1 and C = 2 runs (``f`` fixed, ``q`` shared by the tasks: serializing result rows), and
-``p`` the scheduler's cost per extra task in flight (docs/stack.md: ~2 ms, a conservative figure).
-The client applies every shot in order, so once ``K·a`` exceeds the workers' time the run is
-client-bound and efficiency falls as ``s / (C·a)``. Rows for ``K = 8`` (the default,
-so at most 8 tasks per batch) and ``K = 2C`` (a batch grows with the cluster).
+**Modelled** (labelled ``model`` in the table and in ``benchmarks/results/scaling.json``):
 
-``python -m benchmarks.bench_scaling``; writes ``benchmarks/results/scaling.json``. On a 2-core
-machine the C = 2 run shares its cores with the client, so its efficiency is a lower bound.
+- ``Amdahl``: ``T(C) = Σ_stages serial + parallel / C`` at C = 2, 8, 32, 128, efficiency
+  ``T(1) / (C · T(C))`` with ``T(1)`` the sum of the C = 1 stage medians. At C = 2 it gives
+  back the sum of the C = 2 stage medians unless a stage was clipped (a stage slower on two
+  workers is modelled at its ``T(1)``: the model is then optimistic by the difference).
+- ``Amdahl, task-limited``: the same fit with ``1 / C`` replaced by the stage's
+  ``φ(C) = Σ_g f_g / min(C, n_g)``: a stage's tasks come in groups that can run at once (the
+  tasks of one direct-light pass, of one render pass, of two consecutive shooting batches, as
+  the solve keeps two in flight), ``n_g`` tasks holding the fraction ``f_g`` of the stage's
+  compute seconds (Dask's task stream of the median C = 1 run). No more than ``n_g`` workers
+  can help a group, whatever C; ``rest`` has no tasks, so it is all serial. Both the fit and
+  the prediction use φ, so at C = 2 this model, too, gives back the measurement (clipping
+  aside).
+
+No per-task scheduler cost is added (the old model's ``TASK_COST``, ~2 ms a task in flight, is
+gone): a run's tasks (one per new form-factor row, per direct-light range, per tile and per
+gather range; re-shot rows the client dropped aside, one task per worker holding some) do not
+depend on C, so their scheduling is already inside the measured serial shares. What the model
+leaves out: tasks of unequal cost (a group of ``n_g`` tasks is treated as ``n_g`` equal parts,
+so the task-limited model is optimistic), the client and the scheduler contending with the
+workers for cores (on a 2-core machine the C = 2 run shares its cores with them, so its
+measured efficiency is a lower bound and the fitted serial shares too large), a cluster's start
+growing with C (at 128 workers, a cluster started beforehand and reached with ``--scheduler``),
+and the transfers of larger clusters.
+
+``python -m benchmarks.bench_scaling [--quick] [--scene PATH] [--element-size S]
+[--repeats N] [--json PATH]``; writes ``benchmarks/results/scaling.json`` (``--quick``: a
+smoke run, the Cornell box at 60-unit elements, 64 shots at most, a 64² image, one repeat;
+no JSON unless ``--json``). Never run it beside other timed work: it times wall seconds.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
-import math
 import os
 import platform
+import statistics
+import sys
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
-from daskrad import solve
-from daskrad.distributed import worker
-from daskrad.distributed.dask_executor import start_local
-from daskrad.distributed.store import Store
-from daskrad.formfactor import shooting
-from daskrad.mesh import build_hierarchy
-from daskrad.scene import load_scene
+from benchmarks import bench_speed
+from benchmarks.bench_speed import CORNELL, LARGE_ELEMENT_SIZE, whole_run
+from daskrad.distributed import connect
 from daskrad.settings import Settings
 
 RESULTS = Path(__file__).parent / "results" / "scaling.json"
-SCENE = Path(__file__).resolve().parent.parent / "scenes" / "cornell_box.obj"
-ELEMENT_SIZE = 7.0
-SHOTS = 96
-BATCH = 8
 REPEATS = 3
-#: Scheduler cost of one more task in flight, seconds (docs/stack.md: "many tasks in flight cost
-#: ~2 ms each").
-TASK_COST = 0.002
+MEASURED = (1, 2)
+#: ``--quick``: the image's side, pixels.
+QUICK_SIZE = 64
+MODELLED = (2, 8, 32, 128)
+STAGES = ("direct", "solve", "render", "rest")
+#: The stage of each kind of task (its key's first word; dask_executor names them).
+TASK_STAGE = {"direct": "direct", "formfactor": "solve", "tile": "render", "gather": "render"}
 
 
-def _problem():
-    scene = load_scene(SCENE)
-    h = build_hierarchy(scene, None, ELEMENT_SIZE)
-    mat = h.elem_material
-    reflectance = scene.materials.diffuse[mat]
-    emission = math.pi * scene.materials.emission[mat]
-    return h, reflectance, emission
+def task_groups(stream: list[dict]) -> tuple[dict, dict]:
+    """``({stage: [(tasks, compute seconds), ...]}, {stage: tasks})``: the groups of a run's
+    tasks that can run at once, and the count of its tasks, from Dask's task stream (records
+    with ``key`` and ``startstops``).
+
+    Keys are ``direct-<generation>-…`` (one pass: a generation), ``tile-<generation>-…``,
+    ``gather-<generation>-<n>-<a>-<token>-…`` (one pass: a generation and a context token) and
+    ``formfactor-<generation>-<batch>-…``; a shooting group is a batch and the next one (two
+    batches are in flight)."""
+    groups: dict[tuple, list] = {}
+    for rec in stream:
+        key = rec["key"] if isinstance(rec["key"], str) else str(rec["key"])
+        parts = key.split("-")
+        kind = parts[0]
+        if kind not in TASK_STAGE:
+            continue
+        if kind == "gather":
+            group = (kind, parts[1], parts[4])
+        elif kind == "formfactor":
+            group = (kind, int(parts[1]), int(parts[2]))
+        else:
+            group = (kind, parts[1])
+        seconds = sum(s["stop"] - s["start"] for s in rec["startstops"]
+                      if s["action"] == "compute")
+        n, t = groups.get(group, (0, 0.0))
+        groups[group] = (n + 1, t + seconds)
+    out: dict[str, list[tuple[int, float]]] = {s: [] for s in STAGES}
+    counts = dict.fromkeys(STAGES, 0)
+    for (kind, *rest), (n, t) in sorted(groups.items()):
+        counts[TASK_STAGE[kind]] += n
+        if kind == "formfactor":     # with the batch after it, when it had tasks
+            n += groups.get((kind, rest[0], rest[1] + 1), (0, 0.0))[0]
+        out[TASK_STAGE[kind]].append((n, t))
+    return out, counts
 
 
-def start(workers: int, h, tmp: Path):
-    """A LocalCluster executor of ``workers`` processes, warm: every worker holds the geometry
-    (the per-process cache) and has loaded its numba kernels."""
-    settings = Settings(workers=workers, batch=BATCH, dashboard="127.0.0.1:0")
-    store = Store(tmp / f"scaling-{workers}.zarr", settings).open()
-    executor = start_local(settings, store)
-    ctx = shooting.make_context(h, settings.method, settings.resolution,
-                                edge_angle=settings.edge_angle)
-    executor.set_geometry(ctx, h.generation)
-    generation, token = executor.geometry
-    executor.client.run(worker.context, store.path, "shoot", generation, token)
-    executor.shots(10**6, np.arange(workers)).result()
-    return executor
+def phi(groups: list[tuple[int, float]], workers: int) -> float:
+    """The task-limited ``φ(C)``: the stage's time on ``workers`` over its time on one, for
+    its parallel part (module docstring); 1 for a stage without tasks."""
+    total = sum(t for _, t in groups)
+    if total <= 0.0:
+        return 1.0
+    return sum(t / total / min(workers, n) for n, t in groups)
 
 
-def measure(executor, h, reflectance, emission, repeat: int) -> dict:
-    """One timed solve of ``SHOTS`` shots; kernel seconds from Dask's task stream."""
-    from dask.utils import key_split
+def amdahl(t1: float, t2: float, phi2: float = 0.5) -> tuple[float, float]:
+    """``(serial, parallel)`` seconds of ``T(C) = serial + parallel · φ(C)`` through
+    ``T(1) = t1`` and ``T(2) = t2`` (``φ(2) = phi2``, ½ for Amdahl's law), clipped so that both
+    are ≥ 0 and they sum to ``t1``."""
+    if phi2 >= 1.0:                  # nothing of the stage can run on a second worker
+        return t1, 0.0
+    parallel = min(max((t1 - t2) / (1.0 - phi2), 0.0), t1)
+    return t1 - parallel, parallel
+
+
+def timed(scene: Path, settings: Settings, out: Path) -> dict:
+    """One whole run on a LocalCluster of ``settings.workers`` processes started here: wall
+    seconds (cluster start and close included), the report's step seconds, the stage groups
+    of its task stream."""
     from distributed import get_task_stream
 
-    executor.stats.update(wait=0.0, tasks=0)
-    executor.client.run(worker.forget_rows)   # every repeat computes its rows afresh
-    sol = solve.initial_solution(h, emission)
-    with get_task_stream(client=executor.client) as stream:
+    t = time.perf_counter()
+    ex = connect(settings)
+    start = time.perf_counter() - t
+    close, ex.close = ex.close, lambda: None    # the run closes it: read its stream first
+    try:
+        with get_task_stream(client=ex.client) as stream:
+            r = whole_run(scene, out, settings, executor=ex)
+        tasks = ex.stats["tasks"]
+    finally:
         t = time.perf_counter()
-        sol = solve.solve(h, reflectance, sol, executor.shots, batch=BATCH, tolerance=0.0,
-                          max_iterations=SHOTS)
-        wall = time.perf_counter() - t
-    assert sol.iteration == SHOTS
-    kernel = sum(s["stop"] - s["start"] for rec in stream.data
-                 if key_split(rec["key"]) == "formfactor"
-                 for s in rec["startstops"] if s["action"] == "compute")
-    C = executor.workers
-    return {"workers": C, "seconds": wall, "kernel_seconds": kernel,
-            "kernel_ms_per_shot": 1e3 * kernel / SHOTS,
-            "load_average_1min": os.getloadavg()[0],
-            "wait_seconds": executor.stats["wait"], "tasks": executor.stats["tasks"],
-            "repeat": repeat, "share_kernels": kernel / (C * wall),
-            "share_client": (wall - executor.stats["wait"]) / wall,
-            "share_scheduling": 1.0 - kernel / (C * wall)}
+        close()
+        stop = time.perf_counter() - t
+    rep = r["report"]
+    seconds = start + r["seconds"] + stop
+    stages = {s: rep["seconds"][s] for s in STAGES[:3]}
+    stages["rest"] = seconds - sum(stages.values())
+    groups, counts = task_groups(stream.data)
+    return {"workers": settings.workers, "seconds": seconds, "stages": stages,
+            "cluster_start_s": start, "cluster_close_s": stop,
+            "report_seconds": rep["seconds"], "tasks": tasks, "shots": rep["iterations"],
+            "elements": rep["counts"]["elements"], "converged": rep["converged"],
+            "load_average_1min": os.getloadavg()[0], "groups": groups, "stage_tasks": counts}
 
 
-def model(rows: list[dict], workers=(8, 32, 128)) -> tuple[list[dict], dict]:
-    """Efficiency at ``workers`` from the measured C = 1 and C = 2 rows (module docstring)."""
-    one, two = (next(r for r in rows if r["workers"] == c) for c in (1, 2))
-    batches = SHOTS / BATCH
-    s = one["kernel_seconds"] / SHOTS
-    a = (one["seconds"] - one["wait_seconds"]) / SHOTS
-
-    def overhead(r):  # per-batch time beyond the kernels, with that run's own kernel speed
-        parts = min(r["workers"], BATCH)
-        return r["seconds"] / batches - BATCH * (r["kernel_seconds"] / SHOTS) / parts
-
-    # o(p) = f + q / p: a fixed part (dispatch, the pipeline's start) and a part the tasks
-    # share (serializing result rows), from the overheads at 1 and 2 tasks per batch
-    q = max(0.0, 2.0 * (overhead(one) - overhead(two)))
-    f = max(0.0, overhead(one) - q)
-
-    def per_batch(c, k):
-        p = min(c, k)
-        return max(k * s / p + f + q / p + TASK_COST * (p - 1), k * a)
-
-    out = []
-    for rule in ("K=8", "K=2C"):
-        for c in (2, *workers):
-            k = BATCH if rule == "K=8" else max(BATCH, 2 * c)
-            p = min(c, k)
-            out.append({"rule": rule, "workers": c, "batch": k, "tasks_per_batch": p,
-                        "efficiency": per_batch(1, k) / (c * per_batch(c, k)),
-                        "client_bound": k * a > k * s / p + f + q / p + TASK_COST * (p - 1)})
-    return out, {"kernel_s_per_shot": s, "client_s_per_shot": a, "batch_overhead_fixed_s": f,
-                 "batch_overhead_shared_s": q, "task_cost_s": TASK_COST}
-
-
-def main():
-    h, reflectance, emission = _problem()
+def measure(scene: Path, settings: Settings, repeats: int) -> list[dict]:
+    """Every timed run: C = 1 and C = 2 alternate, so both see the same other load."""
+    runs = []
     with tempfile.TemporaryDirectory(prefix="daskrad-scaling-") as tmp:
-        executors = [start(c, h, Path(tmp)) for c in (1, 2)]
-        try:
-            # C = 1 and C = 2 alternate, so both see the same other load on a shared machine;
-            # the fastest repeat of each is kept
-            runs = [measure(e, h, reflectance, emission, r)
-                    for r in range(REPEATS) for e in executors]
-        finally:
-            for e in executors:
-                e.close()
-    rows = [min((r for r in runs if r["workers"] == c), key=lambda r: r["seconds"])
-            for c in (1, 2)]
-    T1 = rows[0]["seconds"]
-    for r in rows:
-        r["efficiency"] = T1 / (r["seconds"] * r["workers"])
-    predicted, params = model(rows)
+        out = Path(tmp) / "x.exr"
+        # untimed: the client's numba kernels load from the cache (a small scene, one worker)
+        timed(CORNELL, Settings(workers=1, dashboard="127.0.0.1:0",
+                                element_size=bench_speed.QUICK_ELEMENT_SIZE, max_iterations=8), out)
+        for repeat in range(repeats):
+            for c in MEASURED:
+                runs.append({**timed(scene, settings.replace(workers=c), out),
+                             "repeat": repeat})
+    return runs
 
-    print(f"Cornell box, {h.n_elements} elements, {h.n_patches} patches; {SHOTS} shots in "
-          f"batches of {BATCH}")
-    header = (f"{'workers':>7}{'T (s)':>8}{'shots/s':>9}{'efficiency':>11}{'kernels':>9}"
-              f"{'client':>8}{'sched.':>8}{'ms/shot':>9}{'load':>6}")
-    print(header)
-    print("-" * len(header))
-    for r in rows:
-        print(f"{r['workers']:>7}{r['seconds']:>8.2f}{SHOTS / r['seconds']:>9.1f}"
-              f"{r['efficiency']:>11.3f}{r['share_kernels']:>9.1%}{r['share_client']:>8.1%}"
-              f"{r['share_scheduling']:>8.1%}{r['kernel_ms_per_shot']:>9.1f}"
-              f"{r['load_average_1min']:>6.1f}")
-    print("(ms/shot: kernel time per shot, which grows when other processes share the cores;"
-          " load: 1-min load average at the end of the run)")
-    print(f"model: s = {params['kernel_s_per_shot'] * 1e3:.1f} ms kernel/shot, "
-          f"a = {params['client_s_per_shot'] * 1e3:.2f} ms client/shot, "
-          f"o = {params['batch_overhead_fixed_s'] * 1e3:.1f} + "
-          f"{params['batch_overhead_shared_s'] * 1e3:.1f}/tasks ms/batch, "
-          f"p = {TASK_COST * 1e3:.0f} ms/task")
-    print(f"{'rule':>6}{'workers':>8}{'K':>5}{'efficiency':>11}  bound")
-    for m in predicted:
-        if m["workers"] in (2, 8, 32, 128):
-            print(f"{m['rule']:>6}{m['workers']:>8}{m['batch']:>5}{m['efficiency']:>11.3f}  "
-                  f"{'client' if m['client_bound'] else 'workers'}")
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(json.dumps({
-        "benchmark": "scaling",
-        "scene": f"cornell_box.obj, element_size {ELEMENT_SIZE}, emitters shot, no direct pass",
-        "elements": h.n_elements, "patches": h.n_patches, "shots": SHOTS, "batch": BATCH,
-        "machine": platform.platform(), "rows": rows, "model": predicted,
-        "model_parameters": params, "all_runs": runs,
-    }, indent=2))
+
+def medians(runs: list[dict]) -> list[dict]:
+    """The measured rows: per C, the median wall time and the median of each stage."""
+    rows = []
+    for c in MEASURED:
+        mine = sorted((r for r in runs if r["workers"] == c), key=lambda r: r["seconds"])
+        rows.append({"kind": "measured", "workers": c,
+                     "seconds": statistics.median(r["seconds"] for r in mine),
+                     "stages": {s: statistics.median(r["stages"][s] for r in mine)
+                                for s in STAGES},
+                     "cluster_start_s": statistics.median(r["cluster_start_s"] for r in mine),
+                     "load_average_1min": max(r["load_average_1min"] for r in mine),
+                     "median_run": mine[(len(mine) - 1) // 2]})
+    t1 = rows[0]["seconds"]
+    for row in rows:
+        row["efficiency"] = t1 / (row["workers"] * row["seconds"])
     return rows
 
 
+def fit(rows: list[dict]) -> dict:
+    """Per stage: the measured medians, the Amdahl fit and the task-limited fit."""
+    one, two = rows
+    groups = one["median_run"]["groups"]
+    out = {}
+    for s in STAGES:
+        t1, t2 = one["stages"][s], two["stages"][s]
+        serial, parallel = amdahl(t1, t2)
+        phi2 = phi(groups[s], 2)
+        tl_serial, tl_parallel = amdahl(t1, t2, phi2)
+        out[s] = {"T1_s": t1, "T2_s": t2, "serial_s": serial, "parallel_s": parallel,
+                  "serial_share": serial / t1 if t1 > 0 else 1.0,
+                  "parallel_share": parallel / t1 if t1 > 0 else 0.0,
+                  "tasks": one["median_run"]["stage_tasks"][s],
+                  "groups": len(groups[s]),
+                  "widest_group": max((n for n, _ in groups[s]), default=0),
+                  "task_limited": {"serial_s": tl_serial, "parallel_s": tl_parallel,
+                                   "phi_2": phi2}}
+    return out
+
+
+def model(stages: dict, groups: dict, t1: float) -> list[dict]:
+    """The model rows at ``MODELLED`` worker counts (module docstring)."""
+    out = []
+    for rule in ("Amdahl", "Amdahl, task-limited"):
+        for c in MODELLED:
+            if rule == "Amdahl":
+                per = {s: v["serial_s"] + v["parallel_s"] / c for s, v in stages.items()}
+            else:
+                per = {s: v["task_limited"]["serial_s"]
+                       + v["task_limited"]["parallel_s"] * phi(groups[s], c)
+                       for s, v in stages.items()}
+            total = sum(per.values())
+            out.append({"kind": "model", "rule": rule, "workers": c, "seconds": total,
+                        "stages": per, "efficiency": t1 / (c * total)})
+    return out
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_scaling")
+    parser.add_argument("--quick", action="store_true",
+                        help="a smoke run: small scene, one repeat, capped shots")
+    parser.add_argument("--scene", type=Path, default=None,
+                        help="the scene (default: the Cornell box)")
+    parser.add_argument("--element-size", type=float, default=None,
+                        help=f"element size (default: {LARGE_ELEMENT_SIZE} for the Cornell box, "
+                             "the scene's automatic size for --scene)")
+    parser.add_argument("--repeats", type=int, default=None,
+                        help=f"runs per worker count (default {REPEATS}; --quick: 1)")
+    parser.add_argument("--json", type=Path, default=None,
+                        help=f"where to write the results (default {RESULTS}; --quick: nowhere)")
+    args = parser.parse_args([] if argv is None else argv)
+    scene = args.scene or CORNELL
+    size = args.element_size
+    if size is None and args.scene is None:
+        size = bench_speed.QUICK_ELEMENT_SIZE if args.quick else LARGE_ELEMENT_SIZE
+    repeats = args.repeats or (1 if args.quick else REPEATS)
+    opts = {"dashboard": "127.0.0.1:0"}
+    if size is not None:
+        opts["element_size"] = size
+    if args.quick:
+        opts.update(max_iterations=bench_speed.QUICK_ITERATIONS, width=QUICK_SIZE,
+                    height=QUICK_SIZE)
+    settings = Settings(**opts)
+
+    runs = measure(scene, settings, repeats)
+    rows = medians(runs)
+    stages = fit(rows)
+    groups = rows[0]["median_run"]["groups"]
+    predicted = model(stages, groups, sum(rows[0]["stages"].values()))
+    first = runs[0]
+
+    print(f"{scene.name}, element size {size or 'auto'}: {first['elements']} elements, "
+          f"{first['shots']} shots ({'converged' if first['converged'] else 'not converged'}); "
+          f"whole runs, median of {repeats}")
+    print("Measured, per stage (s) and Amdahl fit T(C) = serial + parallel/C "
+          "(shares of the stage's T(1))")
+    print(f"{'stage':<8}{'T(1)':>8}{'T(2)':>8}{'serial':>8}{'parallel':>9}{'tasks':>7}"
+          f"{'groups':>7}{'widest':>7}")
+    for s, v in stages.items():
+        print(f"{s:<8}{v['T1_s']:>8.2f}{v['T2_s']:>8.2f}{v['serial_share']:>8.1%}"
+              f"{v['parallel_share']:>9.1%}{v['tasks']:>7}{v['groups']:>7}"
+              f"{v['widest_group']:>7}")
+    print("(rest: load, preprocess, cluster start and close, store, files; tasks and groups "
+          "from the C = 1 median run's task stream)")
+    header = f"{'':<10}{'rule':<22}{'workers':>7}{'T (s)':>9}{'efficiency':>11}"
+    print(header)
+    print("-" * len(header))
+    for r in rows:
+        print(f"{'measured':<10}{'whole run, median':<22}{r['workers']:>7}{r['seconds']:>9.2f}"
+              f"{r['efficiency']:>11.3f}")
+    for m in predicted:
+        print(f"{'model':<10}{m['rule']:<22}{m['workers']:>7}{m['seconds']:>9.2f}"
+              f"{m['efficiency']:>11.3f}")
+    print(f"(measured: cluster start {rows[0]['cluster_start_s']:.2f} s at C = 1, "
+          f"{rows[1]['cluster_start_s']:.2f} s at C = 2; highest 1-min load average "
+          f"{max(r['load_average_1min'] for r in rows):.1f})")
+
+    result = {
+        "benchmark": "scaling", "method": "whole runs; Amdahl fit per stage (module docstring)",
+        "scene": scene.name, "element_size": size, "elements": first["elements"],
+        "shots": first["shots"], "converged": first["converged"],
+        "max_iterations": settings.max_iterations, "repeats": repeats,
+        "machine": platform.platform(),
+        "cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+        else os.cpu_count(),
+        "measured": [{k: v for k, v in r.items() if k != "median_run"} for r in rows],
+        "stages": stages, "model": predicted,
+        "task_groups": {st: [list(g) for g in v] for st, v in groups.items()},
+        "all_runs": [{k: v for k, v in r.items() if k != "groups"} for r in runs],
+    }
+    target = args.json or (None if args.quick else RESULTS)
+    if target is not None:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(json.dumps(result, indent=2) + "\n")
+    return result
+
+
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])

@@ -75,9 +75,13 @@ CONFIGS = {
 }
 #: Path-tracer samples per pixel (seed 7: independent of the reference's seeds).
 PT_SPP = (16, 64, 256, 1024)
-#: Element size of the Cornell box for the workers table (~59,000 elements, bench_scaling).
+#: Element size of the Cornell box for the workers table and bench_scaling (~59,000 elements
+#: before adaptive subdivision; 73,066 after it).
 LARGE_ELEMENT_SIZE = 7.0
 WORKERS = (0, 1, 2)
+#: ``--quick``: the workers table's scene (Cornell box, ~600 elements) and its shot cap.
+QUICK_ELEMENT_SIZE = 60.0
+QUICK_ITERATIONS = 64
 
 
 def _python() -> list[str]:
@@ -96,6 +100,15 @@ def lit_room_reference() -> tuple[np.ndarray, float]:
     return cached_path_trace(LIT_ROOM, "lit_room_reference", REFERENCE_SPP, SIZE)
 
 
+def whole_run(scene: Path, out: Path, settings: Settings, executor=None) -> dict:
+    """One whole run of ``scene`` into ``out`` (:func:`daskrad.run.run`, no progress bar):
+    ``{"seconds": wall seconds, "report": the run report}``; ``executor``: run on this one
+    (the run closes it)."""
+    t = time.perf_counter()
+    report = run(scene, out, settings, progress=False, executor=executor)
+    return {"seconds": time.perf_counter() - t, "report": report}
+
+
 def timed_run(scene: Path, settings: Settings, repeats: int = REPEATS) -> dict:
     """The median of ``repeats`` whole runs of ``scene`` (warm kernels), with the report and
     image of the median run (every run gives the same bits; the report's step times are
@@ -104,10 +117,8 @@ def timed_run(scene: Path, settings: Settings, repeats: int = REPEATS) -> dict:
     with tempfile.TemporaryDirectory(prefix="daskrad-speed-") as tmp:
         out = Path(tmp) / "x.exr"
         for _ in range(repeats):
-            t = time.perf_counter()
-            report = run(scene, out, settings, progress=False)
-            runs.append({"seconds": time.perf_counter() - t, "report": report,
-                         "image": read_exr(out).astype(np.float64)})
+            r = whole_run(scene, out, settings)
+            runs.append({**r, "image": read_exr(out).astype(np.float64)})
     runs.sort(key=lambda r: r["seconds"])
     return runs[(len(runs) - 1) // 2]
 
@@ -253,7 +264,7 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"  {k:<28}{v:>9.2f}")
 
     if quick:
-        scenes, size, cap = [CORNELL], 60.0, 64
+        scenes, size, cap = [CORNELL], QUICK_ELEMENT_SIZE, QUICK_ITERATIONS
     else:
         scenes = args.scene or [CORNELL]
         size, cap = (None if args.scene else LARGE_ELEMENT_SIZE), None
