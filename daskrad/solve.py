@@ -160,6 +160,10 @@ def apply_shot(h: Hierarchy, reflectance: np.ndarray, sol: Solution, shooter: in
     sol.iteration += 1
 
 
+#: Batches' worth of patches beyond those in flight whose rows :func:`solve` offers for
+#: prefetching: near the top of the ranking most will shoot within a few batches.
+PREFETCH = 2
+
 # A batch executor takes (batch number, shooter patch ids) and returns a handle whose
 # result() is a list of (ids, factors) rows, one per shooter, in the same order.
 Submit = Callable[[int, np.ndarray], object]
@@ -167,13 +171,20 @@ Submit = Callable[[int, np.ndarray], object]
 
 def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, *,
           batch: int, tolerance: float, max_iterations: int,
-          on_batch: Callable[[Solution], None] | None = None) -> Solution:
+          on_batch: Callable[[Solution], None] | None = None,
+          prefetch: Callable[[np.ndarray], None] | None = None) -> Solution:
     """Shoot until the relative unshot RMS is below ``tolerance`` or ``max_iterations`` shots.
 
     ``submit(n, patch_ids)`` starts the form-factor work of batch ``n`` and returns a handle
     with ``.result()``; in-process it computes at once, with Dask it is a future. Two batches
     are in flight: batch ``n + 1`` is chosen (excluding batch ``n``'s shooters) before batch
     ``n`` is applied. ``on_batch`` runs after each applied batch (progress, checkpoints).
+
+    ``prefetch(patch_ids)``, when given, hears after each batch which patches rank next
+    after those in flight (:data:`PREFETCH` batches' worth, most unshot power first): an
+    executor may compute their rows ahead on cores the batches leave idle. A row is a pure
+    function of the geometry and the patch, so this changes when rows are computed, never
+    which patches shoot or the bits.
     """
     start = time.perf_counter() - sol.seconds
     reference = sol.initial_rms if sol.initial_rms > 0 else 1.0
@@ -217,6 +228,9 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
         elif not pending:
             queue(None)
         sol.queued = [ids.tolist() for ids, _ in pending]
+        if prefetch is not None and pending:
+            ahead = np.concatenate([p for p, _ in pending])
+            prefetch(next_batch(sol.unshot, h.patch_area, PREFETCH * batch, ahead))
         if on_batch is not None:
             on_batch(sol)
     sol.converged = unshot_rms(sol.unshot, h.patch_area) / reference <= tolerance
@@ -260,4 +274,5 @@ def radiosity(light: DirectLight, settings: Settings, executor, begin: Solution 
         h.generation)
     return solve(h, mesh.reflectance, start(light) if begin is None else begin,
                  executor.shots, batch=settings.batch, tolerance=settings.tolerance,
-                 max_iterations=settings.max_iterations, on_batch=on_batch)
+                 max_iterations=settings.max_iterations, on_batch=on_batch,
+                 prefetch=getattr(executor, "prefetch", None))

@@ -271,3 +271,25 @@ def test_a_patch_shoots_again_from_the_row_the_client_or_its_worker_kept(cluster
         for x, y, z in zip(a, b, c, strict=True):
             np.testing.assert_array_equal(x, y)
             np.testing.assert_array_equal(x, z)
+
+
+def test_rows_prefetched_on_idle_workers_leave_the_solution_unchanged(cluster_client,
+                                                                     tmp_path):
+    # issue 12: between batches the workers compute rows of the patches ranked next (solve's
+    # prefetch); a batch takes a prefetched row's future. The solution is the bits of one
+    # thread in-process, which never prefetches
+    from daskrad import direct, solve
+    from daskrad.distributed.executor import InProcess
+
+    scene = load_scene(CORNELL)
+    settings = CASES["cornell"]
+    light = direct.light(scene, preprocess(scene, settings), settings, InProcess(threads=1))
+    local = solve.radiosity(light, settings, InProcess(threads=1))
+    store = Store(tmp_path / "ahead.zarr", settings).open()
+    executor = DaskExecutor(cluster_client, store)
+    cluster_client.run(worker.forget_rows)
+    remote = solve.radiosity(light, settings, executor)
+    assert executor.stats["ahead"] > 0
+    assert remote.iteration == local.iteration > 2 * settings.batch
+    np.testing.assert_array_equal(remote.radiosity, local.radiosity)
+    np.testing.assert_array_equal(remote.unshot, local.unshot)

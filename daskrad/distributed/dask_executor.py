@@ -105,7 +105,7 @@ class DaskExecutor:
         self._counted = -float("inf")
         self._count_workers()
         self.dashboard_link = _dashboard(client)
-        self.stats = {"wait": 0.0, "tasks": 0}
+        self.stats = {"wait": 0.0, "tasks": 0, "ahead": 0}
         self.geometry = None               # (generation, token) of the current geometry
         self._probed = False
         self._phase = (None, -float("inf"))
@@ -126,6 +126,7 @@ class DaskExecutor:
         self.geometry = (generation, token)
         self.owner = {}                    # patch id -> the worker holding its row
         self.rows = shooting.RowCache(shooting.row_cache_bytes(shoot_ctx, physical_memory()))
+        self._ahead = {}                   # patch id -> the future of its row, prefetched
         self._probe("shoot", token)
         self.phase("shooting", 0.0, force=True)
 
@@ -151,16 +152,19 @@ class DaskExecutor:
         held: dict = {}
         new: list[int] = []
         have: dict = {}
+        futures, groups = [], []
         for k, p in enumerate(ids.tolist()):
             row = self.rows.get(p)
             a = self.owner.get(p)
             if row is not None:
                 have[k] = row
+            elif p in self._ahead:
+                futures.append(self._ahead.pop(p))
+                groups.append([k])
             elif a in alive:
                 held.setdefault(a, []).append(k)
             else:
                 new.append(k)
-        futures, groups = [], []
         for n, a in enumerate(sorted(held)):
             futures.append(self.client.submit(
                 worker.shoot_task, self.store.path, generation, token, ids[held[a]],
@@ -174,6 +178,30 @@ class DaskExecutor:
             groups.append([k])
         self.stats["tasks"] += len(futures)
         return _Batch(futures, self.stats, groups, ids, self.owner, have, self.rows)
+
+    def prefetch(self, patch_ids: np.ndarray) -> None:
+        """Start the rows of ``patch_ids`` (in that order) that no one holds yet, one task
+        each, while fewer prefetched tasks than workers are unfinished: a worker that would
+        wait for the client's next batch computes a row the solve will mostly ask for within
+        a few batches (:func:`daskrad.solve.solve`), and a batch submitted next waits behind
+        at most one such task per worker. The next batch that shoots the patch takes the
+        future. Not while the client's row cache is half full (a dropped row costs twice)."""
+        if self.geometry is None or self.rows.nbytes > self.rows.max_bytes // 2:
+            return
+        generation, token = self.geometry
+        room = self.workers - sum(not f.done() for f in self._ahead.values())
+        for p in np.asarray(patch_ids).tolist():
+            if room <= 0:
+                break
+            if p in self._ahead or p in self.owner or self.rows.has(p):
+                continue
+            self._ahead[p] = self.client.submit(
+                worker.shoot_task, self.store.path, generation, token,
+                np.array([p], np.int64), key=f"formfactor-{generation}-ahead{p}-{self.run}",
+                pure=False)
+            self.stats["tasks"] += 1
+            self.stats["ahead"] += 1
+            room -= 1
 
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
         generation = self.geometry[0] if self.geometry else 0

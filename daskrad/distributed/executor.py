@@ -6,6 +6,8 @@ Both executors expose the same calls, so the pipeline is written once:
 - ``set_geometry(shoot_ctx, generation=0)``: the form-factor task's context;
 - ``shots(batch_no, patch_ids)`` → handle with ``.result()`` = rows of
   :func:`daskrad.formfactor.shooting.shoot_rows`;
+- ``prefetch(patch_ids)``: rows likely to be asked for soon, computed ahead on idle cores
+  (or not at all: a hint);
 - ``tiles(render_ctx, tiles)`` → list of tile images of :func:`daskrad.render.render_tile`;
 - ``direct(ctx, ranges)`` → list of direct irradiances of
   :func:`daskrad.direct.direct_vertices`, one per vertex range, in order;
@@ -86,6 +88,9 @@ class InProcess:
         self.threads = default_threads() if threads is None else max(1, int(threads))
         self._pool: ThreadPoolExecutor | None = None
         self._lock = threading.Lock()
+        self._ahead: dict[int, Future] = {}    # patch id -> its row computed ahead
+        self._busy = 0                          # tasks submitted and not finished
+        self.prefetched = 0                     # rows started ahead (prefetch)
 
     def use_store(self, store) -> None:
         """In-process tasks read their contexts from memory: no store needed."""
@@ -94,6 +99,7 @@ class InProcess:
         self.shoot_ctx = shoot_ctx
         self.rows = shooting.RowCache(shooting.row_cache_bytes(shoot_ctx,
                                                                physical_memory()))
+        self._ahead = {}
 
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Done | _Rows:
         if self.threads == 1:
@@ -101,8 +107,26 @@ class InProcess:
         # one task per shooter: a batch of 8 keeps every core busy, and the solve submits the
         # next batch before it waits for this one, so the pool never runs dry between batches
         ctx, rows = self.shoot_ctx, self.rows
-        return _Rows([self._submit(shooting.shoot_rows, ctx, [int(p)], rows)
+        return _Rows([self._ahead.pop(int(p), None)
+                      or self._submit(shooting.shoot_rows, ctx, [int(p)], rows)
                       for p in np.asarray(patch_ids)])
+
+    def prefetch(self, patch_ids: np.ndarray) -> None:
+        """Compute the rows of ``patch_ids`` (in that order) not kept yet on the threads the
+        batches leave idle: at most one task waits or runs per idle thread, so a batch
+        submitted next waits for no more than one prefetched row per thread (rows the solve
+        will mostly ask for within a few batches). Only while the row cache has room for
+        them: a prefetched row it dropped would be computed twice."""
+        if self.threads == 1 or self.rows.nbytes > self.rows.max_bytes // 2:
+            return
+        ctx, rows = self.shoot_ctx, self.rows
+        for p in np.asarray(patch_ids).tolist():
+            if self._busy >= self.threads:
+                break
+            if p in self._ahead or rows.has(p):
+                continue
+            self._ahead[p] = self._submit(shooting.shoot_rows, ctx, [p], rows)
+            self.prefetched += 1
 
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
         return self._map(lambda t: render.render_tile(ctx, t[0], t[1]), tiles)
@@ -139,7 +163,14 @@ class InProcess:
         with self._lock:
             if self._pool is None:
                 self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix="daskrad")
-            return self._pool.submit(fn, *args)
+            self._busy += 1
+            future = self._pool.submit(fn, *args)
+        future.add_done_callback(self._finished)
+        return future
+
+    def _finished(self, future: Future) -> None:
+        with self._lock:
+            self._busy -= 1
 
     def _map(self, fn, items: list) -> list:
         if self.threads == 1 or len(items) < 2:

@@ -397,6 +397,11 @@ class RowCache:
                 self._rows.move_to_end(p)
             return row
 
+    def has(self, p: int) -> bool:
+        """Whether patch ``p``'s row is kept (no hit or miss counted)."""
+        with self._lock:
+            return p in self._rows
+
     def put(self, p: int, row: tuple[np.ndarray, np.ndarray]) -> None:
         size = row[0].nbytes + row[1].nbytes
         if size > self.max_bytes:
