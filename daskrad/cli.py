@@ -137,6 +137,9 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     run.add_argument("--batch", type=_positive_int,
                      help=f"shooters per form-factor task (K) {_default('batch')}")
     run.add_argument("--spp", type=_positive_int, help=f"samples per pixel {_default('spp')}")
+    run.add_argument("--edge-spp", type=_nonneg_int,
+                     help="samples of a pixel whose --spp samples differ (edges; 0: none) "
+                          f"{_default('edge_spp')}")
     run.add_argument("--width", type=_positive_int, help="image width (default: the camera's)")
     run.add_argument("--height", type=_positive_int, help="image height (default: the camera's)")
     run.add_argument("--rdiff", type=_nonneg_float,
@@ -188,6 +191,8 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     render.add_argument("--height", type=_positive_int,
                         help="image height (default: the run's)")
     render.add_argument("--spp", type=_positive_int, help="samples per pixel (default: the run's)")
+    render.add_argument("--edge-spp", type=_nonneg_int,
+                        help="samples of a pixel on an edge (default: the run's)")
     render.add_argument("--exposure", type=_finite_float, metavar="STOPS",
                         help="PNG brightness in stops over the automatic exposure (default 0)")
     render.add_argument("-q", "--quiet", action="store_true", help="no timing line")

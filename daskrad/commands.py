@@ -148,12 +148,14 @@ def render_command(args) -> None:
         raise OptionError("the image must be written outside the store", args.output)
     ctx = result.render_context()
     cam = _camera_of(args, ctx.camera)
-    Settings(width=cam.width, height=cam.height, spp=args.spp or ctx.spp).validate()
+    spp = args.spp or ctx.spp
+    edge_spp = ctx.edge_spp if args.edge_spp is None else args.edge_spp
+    Settings(width=cam.width, height=cam.height, spp=spp, edge_spp=edge_spp).validate()
     t = time.perf_counter()
     # the view's junction gather and tiles on every core, as an in-process run renders
     ex = InProcess()
     try:
-        image = pixels(replace(ctx, camera=cam, spp=args.spp or ctx.spp), ex)
+        image = pixels(replace(ctx, camera=cam, spp=spp, edge_spp=edge_spp), ex)
     finally:
         ex.close()
     write_exr(outputs.exr, image)

@@ -38,6 +38,8 @@ class Settings:
     max_iterations: int = 5000
     batch: int = 8                      # K shooters per form-factor task
     spp: int = 4                        # stratified samples per pixel
+    edge_spp: int = 64                  # samples of a pixel whose spp samples differ (an
+    #                                     edge, render.EDGE_STEP); <= spp: never
     workers: int = 0                    # 0: in-process, no cluster
     scheduler: str | None = None        # tcp://host:port of an existing cluster
     width: int | None = None            # image size; None: the camera's
@@ -101,6 +103,7 @@ class Settings:
         integer("max_iterations", 0)
         integer("batch", 1, 1 << 16)
         integer("spp", 1, MAX_SPP)
+        integer("edge_spp", 0, MAX_SPP)
         if self.workers is not None:      # None: chosen from the scene's size
             integer("workers", 0, 1 << 12)
         for name in ("width", "height"):

@@ -133,7 +133,9 @@ def assert_same_run(a: Path, b: Path) -> None:
 
 def render_context(scene, **opts):
     """``(ctx, h)``: the render context of ``scene`` solved with ``opts`` over the defaults
-    patch 4, element 0.5, 1 sample per pixel, and its hierarchy."""
-    settings = Settings(**{"patch_size": 4.0, "element_size": 0.5, "spp": 1, **opts})
+    patch 4, element 0.5, 1 sample per pixel (its centre: what the tests compare with exact
+    values there, so no edge resampling), and its hierarchy."""
+    settings = Settings(**{"patch_size": 4.0, "element_size": 0.5, "spp": 1, "edge_spp": 0,
+                           **opts})
     h, _, sol, light = solve_scene(scene, settings)
     return render.for_view(render.context(scene, light, sol, settings, scene.camera)), h

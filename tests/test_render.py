@@ -6,6 +6,7 @@ import json
 import math
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -48,6 +49,62 @@ def test_tiles_assemble_to_the_same_image_whatever_the_tile_size():
     ctx = _plane_context([1.0, 1.0, 1.0], size=50, spp=4)
     whole = render.render_tile(ctx, slice(0, 50), slice(0, 50))
     for tile in (7, 16, 64):
+        img = np.zeros_like(whole)
+        for rows, cols in render.tiles(50, 50, tile):
+            img[rows, cols] = render.render_tile(ctx, rows, cols)
+        np.testing.assert_array_equal(img, whole)
+
+
+def _square_context(half, size, spp, edge_spp):
+    """A square ``[-half, half]²`` in z = 0 facing a camera at z = 1 (fov 30°), radiance 1,
+    nothing behind it; and the exact part ``(size,)`` of each pixel row (and column) it
+    covers: a pixel's coverage is the product of its row's and its column's."""
+    scene = scene_from_arrays(
+        np.array([[-half, -half, 0], [half, -half, 0], [half, half, 0], [-half, half, 0]]),
+        np.array([[0, 1, 2, 3]]), [0], diffuse=[[0.5] * 3], emission=[[1.0] * 3])
+    h = build_hierarchy(scene, 2 * half, 2 * half)
+    tris, tri_verts, tri_elem = hierarchy_triangles(h)
+    cam = Camera(eye=np.array([0.0, 0.0, 1.0]), look_at=np.zeros(3), up=np.array([0.0, 1, 0]),
+                 fov=30.0, width=size, height=size)
+    ctx = render.RenderContext(
+        grid=build_grid(tris), tri_verts=tri_verts, tri_element=tri_elem,
+        elem_normal=h.elem_normal, vertex_radiance=np.ones((len(h.vertices), 3)),
+        camera=cam, spp=spp, edge_spp=edge_spp, edge_step=render.EDGE_STEP)
+    # a fronto-parallel square projects to the square [lo, hi]² of pixel coordinates
+    t = math.tan(math.radians(cam.fov) / 2.0)
+    lo, hi = (1.0 - half / t) / 2.0 * size, (1.0 + half / t) / 2.0 * size
+    edges = np.arange(size + 1, dtype=float)
+    overlap = np.clip(np.minimum(edges[1:], hi) - np.maximum(edges[:-1], lo), 0.0, 1.0)
+    return ctx, overlap
+
+
+def test_pixels_on_an_edge_are_sampled_again_and_take_their_coverage():
+    # An edge pixel's 64 samples (an 8 × 8 grid of cell centres) estimate its coverage to
+    # 1/16 along each axis the edge crosses; the 4 samples of the base grid only to 1/4. Only
+    # the pixels beside the outline (0.3 of a pixel into them) are sampled again; each takes
+    # the bits of a whole image rendered at 64 samples, the others those of the base image.
+    size = 24
+    ctx, overlap = _square_context(0.11834, size, 4, 64)
+    coverage = overlap[:, None] * overlap[None, :]
+    cut = (overlap > 0) & (overlap < 1)
+    img = render.render(ctx)[..., 0]
+    base = render.render(replace(ctx, edge_spp=0))[..., 0]
+    full = render.render(replace(ctx, spp=64, edge_spp=0))[..., 0]
+    again = img != base
+    partial = (coverage > 0) & (coverage < 1)
+    assert again[partial].mean() > 0.5 and again.sum() < 0.5 * size * size
+    np.testing.assert_array_equal(img[again], full[again])
+    corner = cut[:, None] & cut[None, :]           # both axes cut: errors add up
+    edge = partial & ~corner
+    assert np.abs(img - coverage)[edge].max() <= 1 / 16 + 1e-12
+    assert np.abs(img - coverage).max() <= 2 / 16 + 1 / 256 + 1e-12
+    assert np.abs(base - coverage)[edge].max() > 1 / 8       # the test can fail
+
+
+def test_edge_resampling_does_not_depend_on_the_tiles():
+    ctx, _ = _square_context(0.11834, 50, 4, 64)
+    whole = render.render_tile(ctx, slice(0, 50), slice(0, 50))
+    for tile in (7, 16):
         img = np.zeros_like(whole)
         for rows, cols in render.tiles(50, 50, tile):
             img[rows, cols] = render.render_tile(ctx, rows, cols)
