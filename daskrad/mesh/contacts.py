@@ -79,6 +79,14 @@ def _edges(corners: np.ndarray, is_quad: np.ndarray):
             np.ascontiguousarray(owner[keep]).astype(np.int64))
 
 
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``u × v`` of two 3-vectors: the products and differences of ``np.cross``, so the same
+    bits, without its axis handling (which took most of the cutting's time on the offices)."""
+    u0, u1, u2 = u
+    v0, v1, v2 = v
+    return np.array([u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0])
+
+
 def _cut(piece: np.ndarray, m: np.ndarray, c: float, tol: float):
     """``piece (k, 3)`` cut by the plane ``m · x = c``: the two convex parts (order kept)."""
     s = piece @ m - c
@@ -105,7 +113,7 @@ def _crosses(piece: np.ndarray, n: np.ndarray, a: np.ndarray, b: np.ndarray, tol
     k = len(piece)
     for i in range(k):
         e = piece[(i + 1) % k] - piece[i]
-        inward = np.cross(n, e)
+        inward = _cross(n, e)
         length = np.linalg.norm(inward)
         if length == 0.0:
             continue
@@ -189,7 +197,7 @@ def split_at_contacts(corners: np.ndarray, is_quad: np.ndarray, normals: np.ndar
         pieces = [corners[i] if is_quad[i] else corners[i, :3]]
         for e in by_poly[i]:
             d = b[e] - a[e]
-            m = np.cross(n, d)
+            m = _cross(n, d)
             length = np.linalg.norm(m)
             if length == 0.0:
                 continue
@@ -211,8 +219,8 @@ def split_at_contacts(corners: np.ndarray, is_quad: np.ndarray, normals: np.ndar
         for piece in pieces:
             for f in _fan(piece):
                 quad = not np.array_equal(f[3], f[2])
-                newell = (np.cross(f[2] - f[0], f[3] - f[1]) if quad
-                          else np.cross(f[1] - f[0], f[2] - f[0]))
+                newell = (_cross(f[2] - f[0], f[3] - f[1]) if quad
+                          else _cross(f[1] - f[0], f[2] - f[0]))
                 if 0.5 * abs(newell @ n) <= area_tol:
                     continue  # a sliver where a cut line grazes a corner
                 out_c.append(f)
