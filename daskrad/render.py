@@ -389,7 +389,8 @@ def render_tile_stats(ctx: RenderContext, rows: slice, cols: slice
     if not ctx.edge_spp > ctx.spp:
         o, d = primary_rays(ctx.camera, rows, cols, ctx.spp)
         seeds = sample_ids(ctx.camera, rows, cols, ctx.spp)
-        return _samples(ctx, o, d, seeds, stats).reshape(h, w, ctx.spp, 3).mean(axis=2), stats
+        L = _samples(ctx, o, d, seeds, stats, ctx.spp)
+        return L.reshape(h, w, ctx.spp, 3).mean(axis=2), stats
     # the tile and a one-pixel apron inside the image: an edge between a pixel's samples and
     # its border shows as a step to the neighbour's samples across it (the light's outline
     # crossing a row of pixels below their samples). The apron's samples are the bits its
@@ -400,7 +401,7 @@ def render_tile_stats(ctx: RenderContext, rows: slice, cols: slice
     bh, bw = big_rows.stop - big_rows.start, big_cols.stop - big_cols.start
     o, d = primary_rays(cam, big_rows, big_cols, ctx.spp)
     seeds = sample_ids(cam, big_rows, big_cols, ctx.spp)
-    L = _samples(ctx, o, d, seeds, stats).reshape(bh, bw, ctx.spp, 3)
+    L = _samples(ctx, o, d, seeds, stats, ctx.spp).reshape(bh, bw, ctx.spp, 3)
     inner = (slice(rows.start - big_rows.start, rows.stop - big_rows.start),
              slice(cols.start - big_cols.start, cols.stop - big_cols.start))
     image = L[inner].mean(axis=2)
@@ -411,7 +412,7 @@ def render_tile_stats(ctx: RenderContext, rows: slice, cols: slice
         o, d = pixel_rays(cam, r0, c0, ctx.edge_spp)
         pix = r0.astype(np.int64) * cam.width + c0
         seeds = (pix[:, None] * ctx.edge_spp + np.arange(ctx.edge_spp, dtype=np.int64)).ravel()
-        image[r, c] = _samples(ctx, o, d, seeds, stats).reshape(
+        image[r, c] = _samples(ctx, o, d, seeds, stats, ctx.edge_spp).reshape(
             len(r), ctx.edge_spp, 3).mean(axis=1)
         stats["edges"] += len(r)
     return image, stats
@@ -430,12 +431,33 @@ def _neighbourhood(a: np.ndarray, op) -> np.ndarray:
 
 
 def _samples(ctx: RenderContext, o: np.ndarray, d: np.ndarray, seeds: np.ndarray,
-             stats: dict) -> np.ndarray:
-    """Radiance ``(n, 3)`` along primary rays: :func:`_radiance`, or the plain Gouraud
-    image's :func:`shade` when the context asks for no per-pixel work."""
-    if ctx.extras:
-        return _radiance(ctx, o, d, seeds, 0, stats)
-    return shade(ctx, o, d)
+             stats: dict, spp: int) -> np.ndarray:
+    """Radiance ``(n, 3)`` along primary rays, ``spp`` per pixel: :func:`_radiance`, or the
+    plain Gouraud image's :func:`shade` when the context asks for no per-pixel work.
+
+    Beyond :data:`LIGHT_SPP` samples per pixel an area light's shadow rays per sample shrink
+    (:func:`shadow_side`), so that a pixel casts about as many as at ``LIGHT_SPP``: more
+    samples resolve edges, not the light's noise, which the pixel's shadow rays already
+    average."""
+    if not ctx.extras:
+        return shade(ctx, o, d)
+    if ctx.lights is not None and spp > LIGHT_SPP:
+        ctx = replace(ctx, lights=replace(ctx.lights,
+                                          samples=shadow_side(ctx.lights.samples, spp)))
+    return _radiance(ctx, o, d, seeds, 0, stats)
+
+
+#: Samples per pixel up to which each sample casts the area lights' ``samples²`` shadow rays.
+LIGHT_SPP = 4
+
+
+def shadow_side(samples: int, spp: int) -> int:
+    """Shadow rays per side (``n²`` per area light) of one of ``spp`` samples of a pixel:
+    ``samples`` up to :data:`LIGHT_SPP`, then ``samples · √(LIGHT_SPP / spp)`` rounded, at
+    least 1 (4 at 4 samples: 64 rays a pixel; 1 at 64 samples: 64)."""
+    if spp <= LIGHT_SPP:
+        return int(samples)
+    return max(1, int(round(samples * math.sqrt(LIGHT_SPP / spp))))
 
 
 def _radiance(ctx: RenderContext, o: np.ndarray, d: np.ndarray, seeds: np.ndarray, depth: int,

@@ -207,3 +207,20 @@ def test_default_camera_of_a_closed_room_stands_inside():
     inside = render.default_camera(room.bounds, 32, 32, inside=render.faces_inward(room))
     assert np.all(image(outside) == 0.0)
     np.testing.assert_allclose(image(inside), 1.0, rtol=1e-12)
+
+
+@pytest.mark.parametrize("samples", [1, 2, 4, 8])
+def test_shadow_rays_per_pixel_stay_near_their_budget_as_samples_grow(samples):
+    # beyond LIGHT_SPP samples per pixel each sample casts fewer shadow rays per area light,
+    # so a pixel casts about what it does at LIGHT_SPP: within the rounding of the side
+    # (a factor ((n + ½) / n)² ≤ 2.25), or one ray per sample when even that is more
+    budget = render.LIGHT_SPP * samples**2
+    for spp in range(1, 257):
+        n = render.shadow_side(samples, spp)
+        assert n >= 1
+        if spp <= render.LIGHT_SPP:
+            assert n == samples
+        elif n > 1:
+            assert budget / 2.25 <= spp * n * n <= 2.25 * budget
+        else:                       # one ray per sample: never fewer than the band allows
+            assert spp >= budget / 2.25
