@@ -83,6 +83,10 @@ from daskrad.kernels.tolerances import WINDOW_MIN
 #: every row of the box again).
 SLABS = 8
 
+#: Occluders remembered per light: those that last hid it wholly, searched first at the next
+#: point (:func:`visible_fraction`).
+HINT = 8
+
 
 @jit
 def _pyramid(ex, ey, ez, corners, count, en, off, planes):
@@ -366,9 +370,13 @@ def _light_window(ex, ey, ez, n, corners, count, en, hz, r, cos_thr, tab, lx, ly
 @jit
 def _occlude(grid, ex, ey, ez, n, cand, s0, s1, hz, r, cos_thr, tab, lx, ly, lz, ev, enrm,
              eoff, scr, qclip, xs, ys, xcross, cnt, item, zbuf, mask, xc, yc, x0, inv_px, y0,
-             inv_py, first, stop):
+             inv_py, first, stop, hid):
     """Step 3 for the occluders ``cand[s0:s1]``: each, oriented towards the eye, hides the
     light's pixels it covers nearer than the light.
+
+    ``hid (H + 1,) int32``: the last ``H`` occluders that covered light pixels, in a ring
+    (``hid[H]`` counts them), the hint :func:`visible_fraction` searches first at the next
+    point.
 
     ``first`` is the first light pixel still visible (``item`` 0) before them; returns it
     after them, ``r²`` when every light pixel is hidden (the rest are then skipped when
@@ -428,6 +436,9 @@ def _occlude(grid, ex, ey, ez, n, cand, s0, s1, hz, r, cos_thr, tab, lx, ly, lz,
         da, db, dc, de = depth_coefficients(False, qx, qy, qz, m, nlx, nly, nlz, c)
         if fill_polygon(xs, ys, mm, 1, xc, yc, r, r, x0, inv_px, y0, inv_py, mask,
                         da, db, dc, de, xcross, cnt, item, zbuf) > 0:
+            nh = hid.shape[0] - 1
+            hid[hid[nh] % nh] = t
+            hid[nh] += 1
             while first < r * r and item[first] != 0:
                 first += 1
             if stop and first == r * r:
@@ -438,7 +449,7 @@ def _occlude(grid, ex, ey, ez, n, cand, s0, s1, hz, r, cos_thr, tab, lx, ly, lz,
 @jit
 def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_thr, tab,
                      planes, stamp, sid, cand, lx, ly, lz, ev, enrm, eoff, scr, qclip, xs, ys,
-                     xcross, cnt, item, zbuf, mask, xc, yc, slabs):
+                     xcross, cnt, item, zbuf, mask, xc, yc, slabs, hint, hid):
     """``(V, n_candidates)``: the visible fraction of one light from ``p`` (module docstring).
 
     ``corners (count, 3)`` is the light, ``en (3,)`` its unit emitting normal (``p`` must lie
@@ -459,6 +470,14 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
     candidates (every cell of the box is walked unless ``V = 0``) nor the hidden pixels
     depend on the walk order (:func:`_occlude`), so ``V`` has the same bits as a search of
     the whole box followed by the raster.
+
+    ``hint (H + 1,) int32``: occluders that hid this light from an earlier point (a ring, as
+    ``hid``; ``hint[H] == 0``: none). With the early stop, the cells of their bounding boxes
+    are searched before the slabs: the housing that hides a luminaire from one point of a
+    floor hides it from the next, and it lies at the light's end of the box, which the slabs
+    reach last. The search only comes first; it finds candidates of the box by the same rules,
+    so the candidates and ``V`` are those of the slabs alone, and no point's ``V`` depends on
+    which point came before it. ``hid`` receives the occluders that covered light pixels.
     """
     r = resolution
     ex = p[0] + off * n[0]
@@ -485,6 +504,45 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
     first = 0
     x0 = inv_px = y0 = inv_py = 0.0
     n_light = 0
+    hid[hid.shape[0] - 1] = 0
+    nh = hint.shape[0] - 1
+    if stop and hint[nh] > 0:
+        found = n_c
+        tris = grid.triangles
+        origin, cell, dims = grid.origin, grid.cell, grid.dims
+        for h in range(min(hint[nh], nh)):
+            t = hint[h]
+            lo3 = np.empty(3)
+            hi3 = np.empty(3)
+            for a in range(3):
+                lo3[a] = min(tris[t, 0, a], min(tris[t, 1, a], tris[t, 2, a]))
+                hi3[a] = max(tris[t, 0, a], max(tris[t, 1, a], tris[t, 2, a]))
+            a0, a1 = _cell_range(lo3[0], hi3[0], origin[0], cell[0], dims[0])
+            b0, b1 = _cell_range(lo3[1], hi3[1], origin[1], cell[1], dims[1])
+            c0, c1 = _cell_range(lo3[2], hi3[2], origin[2], cell[2], dims[2])
+            a0, a1 = max(a0, i0), min(a1, i1)
+            b0, b1 = max(b0, j0), min(b1, j1)
+            c0, c1 = max(c0, k0), min(c1, k1)
+            if a0 <= a1 and b0 <= b1 and c0 <= c1:
+                found = _candidates(grid, ex, ey, ez, n[0], n[1], n[2], count, planes, hz,
+                                    off, stamp, sid, cand, found, a0, a1, b0, b1, c0, c1)
+        if found > n_c:
+            status, x0, inv_px, y0, inv_py, n_light = _light_window(
+                ex, ey, ez, n, corners, count, en, hz, r, cos_thr, tab, lx, ly, lz, ev, enrm,
+                eoff, scr, qclip, xs, ys, xcross, cnt, item, zbuf, mask, xc, yc, off)
+            if status == 1:
+                return 1.0, found
+            if status == 2:
+                return _centroid_ray(grid, ex, ey, ez, corners, count, off), found
+            ready = True
+            while first < r * r and item[first] != 0:
+                first += 1
+            first = _occlude(grid, ex, ey, ez, n, cand, n_c, found, hz, r, cos_thr, tab, lx,
+                             ly, lz, ev, enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item,
+                             zbuf, mask, xc, yc, x0, inv_px, y0, inv_py, first, stop, hid)
+            n_c = found
+            if first == r * r:
+                return 0.0, n_c
     for q in range((n_layers + thick - 1) // thick):
         if step == 1:
             s0 = lo + q * thick
@@ -516,7 +574,7 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
                 first += 1
         first = _occlude(grid, ex, ey, ez, n, cand, n_c, found, hz, r, cos_thr, tab, lx, ly,
                          lz, ev, enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item, zbuf, mask,
-                         xc, yc, x0, inv_px, y0, inv_py, first, stop)
+                         xc, yc, x0, inv_px, y0, inv_py, first, stop, hid)
         n_c = found
         if stop and first == r * r:
             return 0.0, n_c
@@ -531,7 +589,7 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
 
 @jit
 def area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count, em_normal,
-                          em_radiance, resolution, edge_angle, slabs=SLABS):
+                          em_radiance, resolution, edge_angle, slabs=SLABS, hint=HINT):
     """Irradiance from the area lights at ``points`` by the window method, and its work.
 
     Parameters
@@ -556,6 +614,9 @@ def area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count, 
     slabs : int
         :data:`SLABS`; 0 searches every pyramid whole and draws every candidate (the
         reference for the early stop: the same bits, slower).
+    hint : int
+        :data:`HINT` occluders remembered per light and searched first; 0: none (the same
+        bits, slower where housings hide luminaires).
 
     Returns
     -------
@@ -593,6 +654,9 @@ def area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count, 
     yc = np.empty(r)
     tab = split_table(edge_angle)
     cos_thr = np.cos(edge_angle)
+    # per light, the occluders that last hid it wholly (a ring of HINT, count last)
+    hints = np.zeros((em_corners.shape[0], max(hint, 1) + 1), dtype=np.int32)
+    hid = np.zeros(max(hint, 1) + 1, dtype=np.int32)
     sid = 0
     for i in range(npts):
         p = points[i]
@@ -611,8 +675,10 @@ def area_irradiance_stats(grid, points, normals, off, hz, em_corners, em_count, 
             vis, n_c = visible_fraction(grid, p, n, em_corners[m], cntm, en, off, hz, r,
                                         cos_thr, tab, planes, stamp, sid, cand, lx, ly, lz,
                                         ev, enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item,
-                                        zbuf, mask, xc, yc, slabs)
+                                        zbuf, mask, xc, yc, slabs, hints[m], hid)
             sid += 1
+            if hint > 0 and vis == 0.0 and hid[hid.shape[0] - 1] > 0:
+                hints[m, :] = hid
             work[i] += n_c
             for c in range(3):
                 out[i, c] += np.pi * em_radiance[m, c] * F * vis
