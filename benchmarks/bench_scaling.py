@@ -94,7 +94,9 @@ def task_groups(stream: list[dict]) -> tuple[dict, dict]:
     Keys are ``direct-<generation>-…`` (one pass: a generation), ``tile-<generation>-…``,
     ``gather-<generation>-<n>-<a>-<token>-…`` (one pass: a generation and a context token) and
     ``formfactor-<generation>-<batch>-…``; a shooting group is a batch and the next one (two
-    batches are in flight)."""
+    batches are in flight). The rows computed ahead (``formfactor-<generation>-ahead<p>-…``,
+    :meth:`daskrad.solve.solve`'s prefetch) are one group of their own: they fill the workers
+    the batches leave idle."""
     groups: dict[tuple, list] = {}
     for rec in stream:
         key = rec["key"] if isinstance(rec["key"], str) else str(rec["key"])
@@ -105,7 +107,8 @@ def task_groups(stream: list[dict]) -> tuple[dict, dict]:
         if kind == "gather":
             group = (kind, parts[1], parts[4])
         elif kind == "formfactor":
-            group = (kind, int(parts[1]), int(parts[2]))
+            ahead = parts[2].startswith("ahead")
+            group = (kind, int(parts[1]), -1 if ahead else int(parts[2]))
         else:
             group = (kind, parts[1])
         seconds = sum(s["stop"] - s["start"] for s in rec["startstops"]
@@ -116,7 +119,7 @@ def task_groups(stream: list[dict]) -> tuple[dict, dict]:
     counts = dict.fromkeys(STAGES, 0)
     for (kind, *rest), (n, t) in sorted(groups.items()):
         counts[TASK_STAGE[kind]] += n
-        if kind == "formfactor":     # with the batch after it, when it had tasks
+        if kind == "formfactor" and rest[1] >= 0:  # with the batch after it, if it had tasks
             n += groups.get((kind, rest[0], rest[1] + 1), (0, 0.0))[0]
         out[TASK_STAGE[kind]].append((n, t))
     return out, counts

@@ -72,7 +72,8 @@ def converged(scene) -> tuple[np.ndarray, float]:
     path = RESULTS / f"twopass_converged_{SIZE}.exr"
     if path.exists():
         return read_exr(path).astype(np.float64), 0.0
-    settings = Settings(width=SIZE, height=SIZE, spp=SPP, element_size=10.0, patch_size=60.0,
+    settings = Settings(width=SIZE, height=SIZE, spp=SPP, edge_spp=0, element_size=10.0,
+                        patch_size=60.0,
                         tolerance=1e-4, max_iterations=20000, subdivide=0.0, rdiff=0.002,
                         area_samples=8)
     solved, ts = _solve(scene, settings)
@@ -120,7 +121,7 @@ def main() -> dict:
     rows = []
     solved = {}
     for name, subdivide, rdiff in CONFIGS:
-        settings = Settings(width=SIZE, height=SIZE, spp=SPP, subdivide=subdivide,
+        settings = Settings(width=SIZE, height=SIZE, spp=SPP, edge_spp=0, subdivide=subdivide,
                             per_pixel=rdiff is not None, rdiff=rdiff or 0.05)
         if subdivide not in solved:
             solved[subdivide] = _solve(scene, settings)

@@ -181,8 +181,9 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
     ``n`` is applied. ``on_batch`` runs after each applied batch (progress, checkpoints).
 
     ``prefetch(patch_ids)``, when given, hears after each batch which patches rank next
-    after those in flight (:data:`PREFETCH` batches' worth, most unshot power first): an
-    executor may compute their rows ahead on cores the batches leave idle. A row is a pure
+    after those in flight (:data:`PREFETCH` batches' worth, most unshot power first, no more
+    than the shots left), and an empty list at the end: an executor may compute their rows
+    ahead on cores the batches leave idle, and drop those no longer offered. A row is a pure
     function of the geometry and the patch, so this changes when rows are computed, never
     which patches shoot or the bits.
     """
@@ -230,9 +231,12 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
         sol.queued = [ids.tolist() for ids, _ in pending]
         if prefetch is not None and pending:
             ahead = np.concatenate([p for p, _ in pending])
-            prefetch(next_batch(sol.unshot, h.patch_area, PREFETCH * batch, ahead))
+            room = min(PREFETCH * batch, max_iterations - sol.iteration - len(ahead))
+            prefetch(next_batch(sol.unshot, h.patch_area, max(room, 0), ahead))
         if on_batch is not None:
             on_batch(sol)
+    if prefetch is not None:
+        prefetch(np.zeros(0, np.int64))     # nothing more: rows still ahead are dropped
     sol.converged = unshot_rms(sol.unshot, h.patch_area) / reference <= tolerance
     return sol
 

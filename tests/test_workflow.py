@@ -306,6 +306,21 @@ def test_render_with_another_camera_gives_the_bits_of_a_full_run_with_it(straigh
     np.testing.assert_array_equal(read_exr(tmp_path / "b.exr"), read_exr(full))
 
 
+def test_render_with_another_edge_spp_gives_the_bits_of_a_full_run_with_it(straight, tmp_path,
+                                                                           capsys):
+    # the store keeps the edge threshold (edge_step) with the context, so a re-render at
+    # another --edge-spp is what a run with it gives; the default's edge pixels differ
+    full = tmp_path / "full.exr"
+    solve(capsys, full, "--tolerance", "0.01", "--edge-spp", "16")
+    store = straight.with_suffix(".zarr")
+    code, _, err = daskrad(capsys, "render", store, "-o", tmp_path / "a.exr", "--edge-spp", "16")
+    assert code == 0, err
+    np.testing.assert_array_equal(read_exr(tmp_path / "a.exr"), read_exr(full))
+    assert np.any(read_exr(full) != read_exr(straight))
+    code, _, err = daskrad(capsys, "render", store, "-o", tmp_path / "b.exr", "--edge-spp", "5000")
+    one_line_error(code, err, "--edge-spp")
+
+
 def test_render_refuses_bad_cameras_and_unfinished_stores(straight, tmp_path, capsys):
     store = straight.with_suffix(".zarr")
     code, _, err = daskrad(capsys, "render", store, "-o", tmp_path / "v.exr", "--eye",

@@ -185,7 +185,12 @@ class DaskExecutor:
         wait for the client's next batch computes a row the solve will mostly ask for within
         a few batches (:func:`daskrad.solve.solve`), and a batch submitted next waits behind
         at most one such task per worker. The next batch that shoots the patch takes the
-        future. Not while the client's row cache is half full (a dropped row costs twice)."""
+        future. Not while the client's row cache is half full (a dropped row costs twice).
+        Futures of patches no longer offered are released (the worker keeps a finished row
+        in its own cache, where a later shot of the patch may find it)."""
+        offered = set(np.asarray(patch_ids).tolist())
+        for p in [p for p in self._ahead if p not in offered]:
+            self._ahead.pop(p).release()
         if self.geometry is None or self.rows.nbytes > self.rows.max_bytes // 2:
             return
         generation, token = self.geometry

@@ -116,7 +116,12 @@ class InProcess:
         batches leave idle: at most one task waits or runs per idle thread, so a batch
         submitted next waits for no more than one prefetched row per thread (rows the solve
         will mostly ask for within a few batches). Only while the row cache has room for
-        them: a prefetched row it dropped would be computed twice."""
+        them: a prefetched row it dropped would be computed twice. Rows started for patches
+        no longer offered are let go (a finished one is in the row cache anyway; one not
+        started is cancelled)."""
+        offered = set(np.asarray(patch_ids).tolist())
+        for p in [p for p in self._ahead if p not in offered]:
+            self._ahead.pop(p).cancel()
         if self.threads == 1 or self.rows.nbytes > self.rows.max_bytes // 2:
             return
         ctx, rows = self.shoot_ctx, self.rows

@@ -58,7 +58,7 @@ from daskrad.settings import Settings
 from daskrad.solve import Solution
 
 #: The store's format; a store of another format is refused (resume, render, export).
-FORMAT = "daskrad-solution/3"
+FORMAT = "daskrad-solution/4"
 
 #: A task context's arrays are packed into one uint8 array ``blob`` of chunks this size
 #: (:meth:`Store.put_context`): zarr 3 costs ~5 ms to create an array, and a render context
