@@ -65,6 +65,7 @@ REPEATS = 3
 #: outline): the samples-per-pixel rows show what antialiasing buys.
 CONFIGS = {
     "default": {},
+    "no edge resampling": {"edge_spp": 0},
     "R 100": {"resolution": 100},
     "coarse elements": {"element_scale": 2.0},
     "fine elements": {"element_scale": 0.5},
