@@ -59,8 +59,8 @@ REFERENCE_SPP = 2048
 REPEATS = 3
 
 #: daskrad settings timed against their error (Settings fields; the image is SIZE × SIZE;
-#: ``element_scale`` multiplies the scene's automatic element size, so a setting means the
-#: same mesh density in the Cornell box and the lit room). The error is per pixel, and much
+#: ``element_scale`` and ``patch_scale`` multiply the scene's automatic element and patch
+#: sizes, so a setting means the same mesh density in the Cornell box and the lit room). The error is per pixel, and much
 #: of it is where the two renderers sample a pixel differently (silhouettes, the light's
 #: outline): the samples-per-pixel rows show what antialiasing buys.
 CONFIGS = {
@@ -68,6 +68,8 @@ CONFIGS = {
     "no edge resampling": {"edge_spp": 0},
     "R 100": {"resolution": 100},
     "coarse elements": {"element_scale": 2.0},
+    "coarse patches": {"patch_scale": 2.0},
+    "fast": {"element_scale": 2.0, "patch_scale": 2.0, "per_pixel": False},
     "fine elements": {"element_scale": 0.5},
     "no per-pixel pass": {"per_pixel": False},
     "tolerance 1e-2": {"tolerance": 1e-2},
@@ -128,11 +130,13 @@ def time_vs_error(scene: Path, ref: np.ndarray, configs: dict, spps: tuple) -> l
     from daskrad.mesh import default_sizes
 
     rows = []
-    element = default_sizes(load_scene(scene))[1]
+    patch, element = default_sizes(load_scene(scene))[:2]
     for name, opts in configs.items():
         opts = dict(opts)
         if "element_scale" in opts:
             opts["element_size"] = element * opts.pop("element_scale")
+        if "patch_scale" in opts:
+            opts["patch_size"] = patch * opts.pop("patch_scale")
         r = timed_run(scene, Settings(width=SIZE, height=SIZE, workers=0, **opts))
         rep = r["report"]
         rows.append({"renderer": "daskrad", "config": name, "seconds": r["seconds"],
