@@ -60,9 +60,10 @@ REPEATS = 3
 
 #: daskrad settings timed against their error (Settings fields; the image is SIZE × SIZE;
 #: ``element_scale`` and ``patch_scale`` multiply the scene's automatic element and patch
-#: sizes, so a setting means the same mesh density in the Cornell box and the lit room). The error is per pixel, and much
-#: of it is where the two renderers sample a pixel differently (silhouettes, the light's
-#: outline): the samples-per-pixel rows show what antialiasing buys.
+#: sizes, so a setting means the same mesh density in the Cornell box and the lit room). The
+#: error is per pixel, and much of it is where the two renderers sample a pixel differently
+#: (silhouettes, the light's outline): the edge and samples-per-pixel rows show what
+#: antialiasing buys.
 CONFIGS = {
     "default": {},
     "no edge resampling": {"edge_spp": 0},

@@ -447,6 +447,35 @@ def _occlude(grid, ex, ey, ez, n, cand, s0, s1, hz, r, cos_thr, tab, lx, ly, lz,
 
 
 @jit
+def _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid, cand, n_c,
+            i0, i1, j0, j1, k0, k1):
+    """:func:`_candidates` over the cells of the hinted occluders' bounding boxes within
+    ``i0..i1 × j0..j1 × k0..k1``: the candidates of those cells, appended after ``cand[:n_c]``;
+    returns the new count (:func:`visible_fraction`)."""
+    found = n_c
+    tris = grid.triangles
+    origin, cell, dims = grid.origin, grid.cell, grid.dims
+    lo3 = np.empty(3)
+    hi3 = np.empty(3)
+    nh = hint.shape[0] - 1
+    for h in range(min(hint[nh], nh)):
+        t = hint[h]
+        for a in range(3):
+            lo3[a] = min(tris[t, 0, a], min(tris[t, 1, a], tris[t, 2, a]))
+            hi3[a] = max(tris[t, 0, a], max(tris[t, 1, a], tris[t, 2, a]))
+        a0, a1 = _cell_range(lo3[0], hi3[0], origin[0], cell[0], dims[0])
+        b0, b1 = _cell_range(lo3[1], hi3[1], origin[1], cell[1], dims[1])
+        c0, c1 = _cell_range(lo3[2], hi3[2], origin[2], cell[2], dims[2])
+        a0, a1 = max(a0, i0), min(a1, i1)
+        b0, b1 = max(b0, j0), min(b1, j1)
+        c0, c1 = max(c0, k0), min(c1, k1)
+        if a0 <= a1 and b0 <= b1 and c0 <= c1:
+            found = _candidates(grid, ex, ey, ez, n[0], n[1], n[2], count, planes, hz, off,
+                                stamp, sid, cand, found, a0, a1, b0, b1, c0, c1)
+    return found
+
+
+@jit
 def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_thr, tab,
                      planes, stamp, sid, cand, lx, ly, lz, ev, enrm, eoff, scr, qclip, xs, ys,
                      xcross, cnt, item, zbuf, mask, xc, yc, slabs, hint, hid):
@@ -505,60 +534,28 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
     x0 = inv_px = y0 = inv_py = 0.0
     n_light = 0
     hid[hid.shape[0] - 1] = 0
-    nh = hint.shape[0] - 1
-    if stop and hint[nh] > 0:
-        found = n_c
-        tris = grid.triangles
-        origin, cell, dims = grid.origin, grid.cell, grid.dims
-        for h in range(min(hint[nh], nh)):
-            t = hint[h]
-            lo3 = np.empty(3)
-            hi3 = np.empty(3)
-            for a in range(3):
-                lo3[a] = min(tris[t, 0, a], min(tris[t, 1, a], tris[t, 2, a]))
-                hi3[a] = max(tris[t, 0, a], max(tris[t, 1, a], tris[t, 2, a]))
-            a0, a1 = _cell_range(lo3[0], hi3[0], origin[0], cell[0], dims[0])
-            b0, b1 = _cell_range(lo3[1], hi3[1], origin[1], cell[1], dims[1])
-            c0, c1 = _cell_range(lo3[2], hi3[2], origin[2], cell[2], dims[2])
-            a0, a1 = max(a0, i0), min(a1, i1)
-            b0, b1 = max(b0, j0), min(b1, j1)
-            c0, c1 = max(c0, k0), min(c1, k1)
-            if a0 <= a1 and b0 <= b1 and c0 <= c1:
-                found = _candidates(grid, ex, ey, ez, n[0], n[1], n[2], count, planes, hz,
-                                    off, stamp, sid, cand, found, a0, a1, b0, b1, c0, c1)
-        if found > n_c:
-            status, x0, inv_px, y0, inv_py, n_light = _light_window(
-                ex, ey, ez, n, corners, count, en, hz, r, cos_thr, tab, lx, ly, lz, ev, enrm,
-                eoff, scr, qclip, xs, ys, xcross, cnt, item, zbuf, mask, xc, yc, off)
-            if status == 1:
-                return 1.0, found
-            if status == 2:
-                return _centroid_ray(grid, ex, ey, ez, corners, count, off), found
-            ready = True
-            while first < r * r and item[first] != 0:
-                first += 1
-            first = _occlude(grid, ex, ey, ez, n, cand, n_c, found, hz, r, cos_thr, tab, lx,
-                             ly, lz, ev, enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item,
-                             zbuf, mask, xc, yc, x0, inv_px, y0, inv_py, first, stop, hid)
-            n_c = found
-            if first == r * r:
-                return 0.0, n_c
-    for q in range((n_layers + thick - 1) // thick):
-        if step == 1:
-            s0 = lo + q * thick
-            s1 = min(s0 + thick - 1, hi)
+    # pass -1: the cells of the hinted occluders, when there are any (the early stop only)
+    first_pass = -1 if stop and hint[hint.shape[0] - 1] > 0 else 0
+    for q in range(first_pass, (n_layers + thick - 1) // thick):
+        if q < 0:
+            found = _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid,
+                            cand, n_c, i0, i1, j0, j1, k0, k1)
         else:
-            s1 = hi - q * thick
-            s0 = max(s1 - thick + 1, lo)
-        a0, a1, b0, b1, c0, c1 = i0, i1, j0, j1, k0, k1
-        if axis == 0:
-            a0, a1 = s0, s1
-        elif axis == 1:
-            b0, b1 = s0, s1
-        else:
-            c0, c1 = s0, s1
-        found = _candidates(grid, ex, ey, ez, n[0], n[1], n[2], count, planes, hz, off,
-                            stamp, sid, cand, n_c, a0, a1, b0, b1, c0, c1)
+            if step == 1:
+                s0 = lo + q * thick
+                s1 = min(s0 + thick - 1, hi)
+            else:
+                s1 = hi - q * thick
+                s0 = max(s1 - thick + 1, lo)
+            a0, a1, b0, b1, c0, c1 = i0, i1, j0, j1, k0, k1
+            if axis == 0:
+                a0, a1 = s0, s1
+            elif axis == 1:
+                b0, b1 = s0, s1
+            else:
+                c0, c1 = s0, s1
+            found = _candidates(grid, ex, ey, ez, n[0], n[1], n[2], count, planes, hz,
+                                off, stamp, sid, cand, n_c, a0, a1, b0, b1, c0, c1)
         if found == n_c:
             continue
         if not ready:
