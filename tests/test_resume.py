@@ -48,9 +48,12 @@ def _root_attrs(store: Path) -> dict:
 
 
 def _start_and_stop_after_first_checkpoint(out: Path, sig: int) -> subprocess.CompletedProcess:
+    # SIGINT at its default in the child (Python raises KeyboardInterrupt only then), even
+    # when the test runner was started with it ignored (a background job of a shell)
     proc = subprocess.Popen([sys.executable, "-m", "daskrad", "run", str(CORNELL), "-o",
                              str(out), "--workers", "0", *ARGS],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     store = Outputs(out).partial         # a new run solves beside the earlier results
     end = time.monotonic() + 120
     while "checkpoint" not in _root_attrs(store):
@@ -198,6 +201,8 @@ def test_ctrl_c_during_a_store_write_waits_for_it_to_finish(tmp_path, monkeypatc
     h, store, sol = _store_at_iteration_8(tmp_path / "s.zarr")
     replace = Path.replace
     sent = []
+    # Python's own SIGINT handler, whatever the runner inherited (ignored in a background job)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
 
     def interrupting(self, target):
         if not sent:
@@ -206,8 +211,11 @@ def test_ctrl_c_during_a_store_write_waits_for_it_to_finish(tmp_path, monkeypatc
         return replace(self, target)
 
     monkeypatch.setattr(Path, "replace", interrupting)
-    with pytest.raises(KeyboardInterrupt):
-        store.checkpoint(sol)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            store.checkpoint(sol)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert sent
     monkeypatch.setattr(Path, "replace", replace)
     attrs = _root_attrs(tmp_path / "s.zarr")
