@@ -15,40 +15,48 @@ class _Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line on stderr and exit code 2 (docs/design.md §7)."""
 
     def error(self, message: str):  # noqa: D401 - argparse API
-        sys.stderr.write(f"daskrad: error: {message} (see 'daskrad --help')\n")
+        sys.stderr.write(f"daskrad: error: {message} (see '{self.prog} --help')\n")
         sys.exit(2)
 
 
+def _number(kind, text: str, what: str):
+    """``kind(text)`` (int or float), or the one-line error naming ``what`` it must be."""
+    try:
+        return kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None
+
+
 def _positive_int(text: str) -> int:
-    value = int(text)
+    value = _number(int, text, "a positive integer")
     if value <= 0:
         raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
     return value
 
 
 def _nonneg_int(text: str) -> int:
-    value = int(text)
+    value = _number(int, text, "an integer >= 0")
     if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text}")
     return value
 
 
 def _positive_float(text: str) -> float:
-    value = float(text)
+    value = _number(float, text, "a positive finite number")
     if not value > 0 or value == float("inf"):
         raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
     return value
 
 
 def _nonneg_float(text: str) -> float:
-    value = float(text)
+    value = _number(float, text, "a finite number >= 0")
     if not (value >= 0 and value != float("inf")):
         raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
     return value
 
 
 def _finite_float(text: str) -> float:
-    value = float(text)
+    value = _number(float, text, "a finite number")
     if value != value or value in (float("inf"), float("-inf")):
         raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
     return value
@@ -138,7 +146,8 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
                      help=f"shooters per form-factor task (K) {_default('batch')}")
     run.add_argument("--spp", type=_positive_int, help=f"samples per pixel {_default('spp')}")
     run.add_argument("--edge-spp", type=_nonneg_int,
-                     help="samples of a pixel whose --spp samples differ (edges; 0: none) "
+                     help="samples of a pixel whose --spp samples, with its neighbours', "
+                          "differ (an edge), at most 1024; 0 or not more than --spp: none "
                           f"{_default('edge_spp')}")
     run.add_argument("--width", type=_positive_int, help="image width (default: the camera's)")
     run.add_argument("--height", type=_positive_int, help="image height (default: the camera's)")

@@ -20,6 +20,7 @@ from pathlib import Path
 from daskrad.direct import DirectLight
 from daskrad.errors import OptionError
 from daskrad.io import write_exr, write_png, write_report
+from daskrad.io.image import written_by_daskrad
 from daskrad.render import Image
 from daskrad.scene.types import Scene
 from daskrad.settings import Settings
@@ -73,6 +74,10 @@ class Outputs:
             if path.is_symlink() or (path.exists() and not path.is_file()):
                 raise OptionError("exists and is not a regular file; daskrad replaces only "
                                   "its own results (choose another -o)", path)
+            if path.exists() and not written_by_daskrad(path):
+                raise OptionError("exists and was not written by daskrad; daskrad never "
+                                  "replaces what it did not make (move it or choose another "
+                                  "-o)", path)
         for path in (outputs.store, outputs.partial):
             if (path.exists() or path.is_symlink()) and not is_store(path):
                 raise OptionError("exists and is not a daskrad solution store; daskrad never "

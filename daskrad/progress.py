@@ -12,17 +12,18 @@ class Bar:
     """Progress: shots done and the relative unshot RMS against the tolerance.
 
     The bar counts decades of unshot RMS reduction, ``0 → log10(1/tolerance)``. Disabled, it
-    does nothing (``--quiet``, tests).
+    does nothing (``--quiet``, tests, and a stderr that is not a terminal: a log file would
+    fill with carriage-return updates).
     """
 
     def __init__(self, tolerance: float, enabled: bool):
         self.bar = None
-        if enabled:
+        if enabled and sys.stderr.isatty():
             from tqdm import tqdm
 
             self.total = max(1e-9, math.log10(1.0 / tolerance))
-            self.bar = tqdm(total=round(self.total, 2), desc="shooting", unit="dec",
-                            bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix}",
+            self.bar = tqdm(total=round(self.total, 2), desc="", unit="dec",
+                            bar_format="shooting: {percentage:3.0f}%|{bar}| {desc}",
                             file=sys.stderr)
 
     def __call__(self, sol: Solution) -> None:
@@ -31,7 +32,7 @@ class Bar:
         it, rms, sec = sol.history[-1]
         done = min(self.total, math.log10(1.0 / max(rms, 1e-300)))
         self.bar.n = round(max(0.0, done), 2)
-        self.bar.set_postfix_str(f"shot {it}, unshot {rms:.2e}, {sec:.1f}s", refresh=True)
+        self.bar.set_description_str(f"shot {it}, unshot {rms:.2e}, {sec:.1f}s", refresh=True)
 
     def close(self) -> None:
         if self.bar is not None:

@@ -224,3 +224,20 @@ def test_shadow_rays_per_pixel_stay_near_their_budget_as_samples_grow(samples):
             assert budget / 2.25 <= spp * n * n <= 2.25 * budget
         else:                       # one ray per sample: never fewer than the band allows
             assert spp >= budget / 2.25
+
+
+def test_sample_positions_are_stratified_and_centred_for_any_count():
+    # a square count is the grid of cell centres; any other count puts one sample in every
+    # row and every column of an n × n grid, so the positions average to the pixel's centre
+    # exactly (a grid trimmed to n left the last row short: the mean moved off the centre)
+    for n in range(1, 257):
+        off = render.sample_offsets(n)
+        assert off.shape == (n, 2) and np.all((off > 0) & (off < 1))
+        s = math.isqrt(n)
+        if s * s == n:
+            cells = np.round(off * s - 0.5).astype(int)
+            assert len({tuple(c) for c in cells}) == n
+        else:
+            for axis in (0, 1):
+                assert sorted(np.round(off[:, axis] * n - 0.5).astype(int)) == list(range(n))
+        np.testing.assert_allclose(off.mean(axis=0), 0.5, atol=1e-12)

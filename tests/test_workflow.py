@@ -321,6 +321,38 @@ def test_render_with_another_edge_spp_gives_the_bits_of_a_full_run_with_it(strai
     one_line_error(code, err, "--edge-spp")
 
 
+@pytest.mark.parametrize("name", ["x.exr", "x.png", "x.json"])
+def test_a_file_daskrad_did_not_write_is_refused_not_replaced(tmp_path, capsys, name):
+    # earlier results are replaced (the run says so) only when they say daskrad wrote them
+    # (the EXR header's and the PNG's software tag, the report's versions): a user's file of
+    # the same name is refused with one line before anything is read or written
+    foreign = tmp_path / name
+    foreign.write_text("a file of the user's")
+    code, _, err = daskrad(capsys, "run", SCENE, "-o", tmp_path / "x.exr", *COARSE)
+    one_line_error(code, err, name, "not written by daskrad")
+    assert foreign.read_text() == "a file of the user's"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
+    code, _, err = daskrad(capsys, "render", tmp_path / "none.zarr", "-o", tmp_path / "x.exr")
+    assert code == 2 and foreign.read_text() == "a file of the user's"
+
+
+def test_earlier_results_and_exports_of_daskrad_are_replaced_foreign_ones_refused(
+        straight, tmp_path, capsys):
+    out = copy_run(straight, tmp_path)
+    code, _, err = daskrad(capsys, "run", SCENE, "-o", out, *COARSE, "--tolerance", "0.01")
+    assert code == 0, err
+    assert "replaced the earlier results" in err
+    for suffix in (".glb", ".ply", ".obj"):
+        mesh = tmp_path / f"m{suffix}"
+        args = ("export", straight.with_suffix(".zarr"), mesh)
+        assert daskrad(capsys, *args)[0] == 0
+        assert daskrad(capsys, *args)[0] == 0          # its own export: replaced
+        mesh.write_text("a file of the user's")
+        code, _, err = daskrad(capsys, *args)
+        one_line_error(code, err, mesh.name, "not written by daskrad")
+        assert mesh.read_text() == "a file of the user's"
+
+
 def test_render_refuses_bad_cameras_and_unfinished_stores(straight, tmp_path, capsys):
     store = straight.with_suffix(".zarr")
     code, _, err = daskrad(capsys, "render", store, "-o", tmp_path / "v.exr", "--eye",

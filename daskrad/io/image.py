@@ -13,6 +13,35 @@ from pathlib import Path
 
 import numpy as np
 
+#: What daskrad writes into an image's metadata (the EXR header's ``software`` attribute, the
+#: PNG's ``Software`` text): an existing file is replaced only when it carries it.
+SOFTWARE = "daskrad"
+
+
+def written_by_daskrad(path: str | Path) -> bool:
+    """Whether the file at ``path`` (.exr, .png or a run report .json) says daskrad wrote it."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".exr":
+            import OpenEXR
+
+            with OpenEXR.File(str(path), header_only=True) as f:
+                return str(f.header().get("software", "")).startswith(SOFTWARE)
+        if suffix == ".png":
+            from PIL import Image
+
+            with Image.open(path) as im:
+                return str(im.info.get("Software", "")).startswith(SOFTWARE)
+        if suffix == ".json":
+            import json
+
+            report = json.loads(path.read_text())
+            return isinstance(report, dict) and SOFTWARE in report.get("versions", {})
+    except Exception:          # unreadable, truncated, not the format at all: not ours
+        return False
+    return False
+
 
 def _atomic_target(path: Path) -> Path:
     return path.with_name(f".{path.name}.partial{path.suffix}")
@@ -42,7 +71,8 @@ def write_exr(path: str | Path, rgb: np.ndarray) -> None:
     if pixels.ndim != 3 or pixels.shape[2] != 3:
         raise ValueError(f"rgb must be (H, W, 3), got {pixels.shape}")
     tmp = _atomic_target(path)
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage,
+              "software": SOFTWARE}
     with _removed_on_failure(tmp):
         try:
             OpenEXR.File(header, {"RGB": pixels}).write(str(tmp))
@@ -93,10 +123,13 @@ def write_png(path: str | Path, rgb: np.ndarray, exposure: float | None = None,
               stops: float = 0.0) -> None:
     """Tone-mapped sRGB preview of linear ``rgb : (H, W, 3)``; ``stops`` brightens (> 0) or
     darkens the automatic (or given) exposure by powers of two (``--exposure``)."""
-    from PIL import Image
+    from PIL import Image, PngImagePlugin
 
     path = Path(path)
     tmp = _atomic_target(path)
+    info = PngImagePlugin.PngInfo()
+    info.add_text("Software", SOFTWARE)
     with _removed_on_failure(tmp):
-        Image.fromarray(tonemap(rgb, exposure, stops), mode="RGB").save(tmp, format="PNG")
+        Image.fromarray(tonemap(rgb, exposure, stops), mode="RGB").save(tmp, format="PNG",
+                                                                        pnginfo=info)
         os.replace(tmp, path)

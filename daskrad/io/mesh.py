@@ -18,6 +18,7 @@ exposure chosen over the vertices, shifted by ``stops``.
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 
@@ -44,6 +45,10 @@ def write_mesh(path: str | Path, vertices: np.ndarray, triangles: np.ndarray,
                           f"got {path.name}")
     if not path.parent.is_dir():
         raise OptionError(f"no such directory for the export: {path.parent}")
+    if path.is_symlink() or (path.exists() and not (path.is_file()
+                                                    and written_by_daskrad(path))):
+        raise OptionError("exists and was not written by daskrad; daskrad never replaces "
+                          "what it did not make (move it or choose another name)", path)
     radiance = np.asarray(radiance, np.float64)
     shown = display(radiance, None, stops)
     linear8 = np.round(shown * 255.0).astype(np.uint8)
@@ -59,6 +64,40 @@ def write_mesh(path: str | Path, vertices: np.ndarray, triangles: np.ndarray,
     elif kind == "glb":
         mesh.vertex_attributes["_RADIANCE"] = radiance.astype(np.float32)
     data = mesh.export(file_type=kind)
+    data = _marked(kind, data if isinstance(data, bytes) else data.encode())
     tmp = path.with_name(f".{path.name}.partial{path.suffix}")
-    tmp.write_bytes(data if isinstance(data, bytes) else data.encode())
+    tmp.write_bytes(data)
     os.replace(tmp, path)
+
+
+#: The mark an exported mesh carries (an OBJ comment, a PLY header comment, the glTF asset's
+#: ``generator``): an existing file is replaced only when it has it.
+MARK = "written by daskrad"
+
+
+def _marked(kind: str, data: bytes) -> bytes:
+    """``data`` of format ``kind`` with :data:`MARK` in its header."""
+    if kind == "obj":
+        return f"# {MARK}\n".encode() + data
+    if kind == "ply":            # after the "ply" and "format" lines, where comments go
+        lines = data.split(b"\n", 2)
+        return b"\n".join([lines[0], lines[1], f"comment {MARK}".encode(), lines[2]])
+    # glb: a 12-byte header, then a JSON chunk (length, type, body padded with spaces to 4)
+    length = int.from_bytes(data[12:16], "little")
+    doc = json.loads(data[20:20 + length])
+    doc.setdefault("asset", {})["generator"] = MARK
+    body = json.dumps(doc, separators=(",", ":")).encode()
+    body += b" " * (-len(body) % 4)
+    rest = data[20 + length:]
+    out = (len(body).to_bytes(4, "little") + data[16:20] + body + rest)
+    return data[:8] + (12 + len(out)).to_bytes(4, "little") + out
+
+
+def written_by_daskrad(path: str | Path) -> bool:
+    """Whether the mesh file at ``path`` carries :data:`MARK` (:func:`write_mesh` wrote it)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(1 << 16)
+    except OSError:
+        return False
+    return MARK.encode() in head
