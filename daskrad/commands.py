@@ -86,7 +86,8 @@ def info_text(args) -> str:
         "triangles)" + (f", {scene.dropped_degenerate} degenerate dropped"
                         if scene.dropped_degenerate else ""),
         f"patches     {h.n_patches} (edge <= {patch_size:.4g})",
-        f"elements    {h.n_elements} (edge <= {element_size:.4g})",
+        f"elements    {h.n_elements} (edge <= {element_size:.4g}; a run adds those of adaptive "
+        "subdivision)",
         f"vertices    {len(h.vertices)}",
         f"materials   {len(scene.materials)}: {', '.join(scene.materials.names)}",
         f"emitters    {int(scene.emitting.sum())} polygons",
