@@ -196,7 +196,7 @@ def _scene(path: str, vertices: int) -> dict:
             t = time.process_time()
             out[name] = area_irradiance_stats(ctx.grid, P, N, *args, slabs, hint)
             best[name] = min(best[name], time.process_time() - t)
-    return {"scene": str(path), "vertices": len(P), "of_vertices": V,
+    return {"scene": Path(path).name, "vertices": len(P), "of_vertices": V,
             "emitter_patches": int(len(ctx.emitter_corners)), **_pairs(ctx, P, N),
             "cpu_seconds_hint": best["hint"],
             "cpu_seconds_early_stop": best["early stop"],

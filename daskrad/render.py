@@ -371,7 +371,13 @@ def sample_ids(camera: Camera, rows: slice, cols: slice, spp: int) -> np.ndarray
     rays, so a pixel gets the same bits whichever tile or worker computes it."""
     r = np.arange(rows.start, rows.stop, dtype=np.int64)
     c = np.arange(cols.start, cols.stop, dtype=np.int64)
-    pix = r[:, None] * camera.width + c[None, :]
+    return _sample_ids(camera, r[:, None], c[None, :], spp)
+
+
+def _sample_ids(camera: Camera, r: np.ndarray, c: np.ndarray, spp: int) -> np.ndarray:
+    """The ids of :func:`sample_ids` for the pixels at rows ``r`` and columns ``c`` (int64,
+    broadcast against each other), in the order of :func:`_rays`."""
+    pix = r * camera.width + c
     return (pix[..., None] * spp + np.arange(spp, dtype=np.int64)).reshape(-1)
 
 
@@ -423,8 +429,8 @@ def render_tile_stats(ctx: RenderContext, rows: slice, cols: slice
     if len(r):
         r0, c0 = r + rows.start, c + cols.start
         o, d = pixel_rays(cam, r0, c0, ctx.edge_spp)
-        pix = r0.astype(np.int64) * cam.width + c0
-        seeds = (pix[:, None] * ctx.edge_spp + np.arange(ctx.edge_spp, dtype=np.int64)).ravel()
+        seeds = _sample_ids(cam, r0.astype(np.int64)[:, None], c0.astype(np.int64)[:, None],
+                            ctx.edge_spp)
         image[r, c] = _samples(ctx, o, d, seeds, stats, ctx.edge_spp).reshape(
             len(r), ctx.edge_spp, 3).mean(axis=1)
         stats["edges"] += len(r)
@@ -577,12 +583,7 @@ SEED_STRIDE = 1 << 42
 def render(ctx: RenderContext) -> np.ndarray:
     """The whole image, ``(H, W, 3) float64``, tile by tile in-process (the junction gather
     applied for its camera, :func:`for_view`)."""
-    ctx = for_view(ctx)
-    cam = ctx.camera
-    image = np.zeros((cam.height, cam.width, 3))
-    for rows, cols in tiles(cam.width, cam.height):
-        image[rows, cols] = render_tile(ctx, rows, cols)
-    return image
+    return pixels(ctx)
 
 
 def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indirect: np.ndarray,

@@ -209,28 +209,19 @@ class DaskExecutor:
             room -= 1
 
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
+        """The image's tiles as ``tile-<generation>-<n>`` futures, in order."""
         generation = self.geometry[0] if self.geometry else 0
-        token = self.store.put_context("render", ctx)
-        self._probe("render", token)
-        futures = [
-            self.client.submit(worker.tile_task, self.store.path, generation, token,
-                               rows.start, rows.stop, cols.start, cols.stop,
-                               key=f"tile-{generation}-{n}-{self.run}", pure=False)
-            for n, (rows, cols) in enumerate(tiles)]
-        self.stats["tasks"] += len(futures)
-        return self._gather("rendering", futures)
+        return self._context_tasks(
+            "render", ctx, generation, worker.tile_task,
+            [(rows.start, rows.stop, cols.start, cols.stop) for rows, cols in tiles],
+            lambda n, item, token: f"tile-{generation}-{n}", "rendering")
 
     def direct(self, ctx, ranges: list[tuple[int, int]]) -> list[np.ndarray]:
         """Direct light at vertex ranges as ``direct-<generation>-<n>`` futures, in order."""
         generation = int(getattr(ctx, "generation", 0))
-        token = self.store.put_context("direct", ctx)
-        self._probe("direct", token)
-        futures = [
-            self.client.submit(worker.direct_task, self.store.path, generation, token, a, b,
-                               key=f"direct-{generation}-{n}-{a}-{self.run}", pure=False)
-            for n, (a, b) in enumerate(ranges)]
-        self.stats["tasks"] += len(futures)
-        return self._gather("direct light", futures)
+        return self._context_tasks(
+            "direct", ctx, generation, worker.direct_task, ranges,
+            lambda n, item, token: f"direct-{generation}-{n}-{item[0]}", "direct light")
 
     def gather(self, ctx: render.GatherContext, ranges: list[tuple[int, int]]
                ) -> list[render.GatherOperator]:
@@ -238,22 +229,31 @@ class DaskExecutor:
         ``gather-<generation>-<n>`` futures, in order. The context's token is in the key: a
         re-render with another view gathers other vertices over the same ranges."""
         generation = self.geometry[0] if self.geometry else 0
-        token = self.store.put_context("gather", ctx)
-        self._probe("gather", token)
+        return self._context_tasks(
+            "gather", ctx, generation, worker.gather_task, ranges,
+            lambda n, item, token: f"gather-{generation}-{n}-{item[0]}-{token}", "rendering",
+            "junction gather: ")
+
+    def _context_tasks(self, kind: str, ctx, generation: int, task, items: list, key,
+                       phase: str, what: str = "") -> list:
+        """``task(store path, generation, token, *item)`` for every item as futures, their
+        results in order: ``ctx`` is written once into the store as the ``kind`` context
+        (``token``), every worker is probed for it, and future ``n`` is keyed
+        ``key(n, item, token)-<run>``; the phase ``phase`` (detail headed ``what``) follows
+        them on the dashboard."""
+        token = self.store.put_context(kind, ctx)
+        self._probe(kind, token)
         futures = [
-            self.client.submit(worker.gather_task, self.store.path, generation, token, a, b,
-                               key=f"gather-{generation}-{n}-{a}-{token}-{self.run}",
-                               pure=False)
-            for n, (a, b) in enumerate(ranges)]
+            self.client.submit(task, self.store.path, generation, token, *item,
+                               key=f"{key(n, item, token)}-{self.run}", pure=False)
+            for n, item in enumerate(items)]
         self.stats["tasks"] += len(futures)
-        return self._gather("rendering", futures, "junction gather: ")
+        return self._gather(phase, futures, what)
 
     def memory(self) -> dict:
         """Peak memory of the client and of each worker (MiB), and the row caches."""
         states = self.client.run(worker.state)
-        return {"client_peak_mib": peak_mib(),
-                "row_cache_mib": self.rows.nbytes / 2**20,
-                "row_cache_limit_mib": self.rows.max_bytes / 2**20,
+        return {"client_peak_mib": peak_mib(), **self.rows.usage(),
                 "workers": [{k: states[a][k] for k in ("peak_mib", "row_cache_mib",
                                                        "row_cache_limit_mib")}
                             for a in sorted(states)]}

@@ -149,9 +149,7 @@ class InProcess:
     def memory(self) -> dict:
         """Peak memory of this process (MiB) and the row cache's use and budget (no
         workers: this process is the one that computes)."""
-        return {"client_peak_mib": peak_mib(), "workers": [],
-                "row_cache_mib": self.rows.nbytes / 2**20,
-                "row_cache_limit_mib": self.rows.max_bytes / 2**20}
+        return {"client_peak_mib": peak_mib(), "workers": [], **self.rows.usage()}
 
     def publish(self, key: str, value) -> None:
         """No dashboard in-process: progress shows in the terminal only."""

@@ -85,7 +85,6 @@ def memory() -> int:
     return int(limit) if limit else physical_memory()
 
 
-
 def forget_rows() -> None:
     """Drop this process's cached form-factor rows (a benchmark timing the form-factor work of
     repeated runs of one geometry calls it on every worker with ``client.run``)."""
@@ -127,8 +126,7 @@ def probe(path: str, kind: str, token: str) -> str | None:
 def state() -> dict:
     """This process's pid and cache statistics (tests and benchmarks call it via client.run)."""
     rows = next(iter(_rows.values()), None)
+    usage = rows.usage() if rows else {"row_cache_mib": 0.0, "row_cache_limit_mib": 0.0}
     return {"pid": os.getpid(), "loads": loads, "cached": len(_cache),
             "row_hits": rows.hits if rows else 0, "row_misses": rows.misses if rows else 0,
-            "row_cache_mib": rows.nbytes / 2**20 if rows else 0.0,
-            "row_cache_limit_mib": rows.max_bytes / 2**20 if rows else 0.0,
-            "peak_mib": peak_mib()}
+            **usage, "peak_mib": peak_mib()}

@@ -397,6 +397,12 @@ class RowCache:
                 self._rows.move_to_end(p)
             return row
 
+    def usage(self) -> dict:
+        """``{"row_cache_mib": kept, "row_cache_limit_mib": budget}`` (the run report's
+        memory section)."""
+        return {"row_cache_mib": self.nbytes / 2**20,
+                "row_cache_limit_mib": self.max_bytes / 2**20}
+
     def has(self, p: int) -> bool:
         """Whether patch ``p``'s row is kept (no hit or miss counted)."""
         with self._lock:
