@@ -6,7 +6,10 @@ model for 8, 32 and 128 workers built from the stages' measured shares.
 :func:`benchmarks.bench_speed.whole_run`, as bench_speed's workers table) of a scene of
 ≥ 50k elements: the Cornell box with 7-unit elements by default (~59,000 elements, ~73,000
 after adaptive subdivision; ``--scene PATH`` and ``--element-size`` for others), converged to
-the default tolerance (re-shots included), on a LocalCluster of C single-threaded processes.
+the default tolerance (re-shots included), on a LocalCluster of C single-threaded processes
+(``--processes``: each reads the store and keeps its own caches, as the machines of a real
+cluster would; ``--threads`` measures ``--workers C``'s default, threads of the client's
+process, instead).
 The cluster is started and closed by this benchmark around each run (so its task stream can be
 read before it closes), and both are in ``T(C)``. Every run is a fresh cluster (its workers
 load the geometry and their numba kernels from the on-disk cache inside the run); one untimed
@@ -145,7 +148,7 @@ def amdahl(t1: float, t2: float, phi2: float = 0.5) -> tuple[float, float]:
 
 
 def timed(scene: Path, settings: Settings, out: Path) -> dict:
-    """One whole run on a LocalCluster of ``settings.workers`` processes started here: wall
+    """One whole run on a LocalCluster of ``settings.workers`` workers started here: wall
     seconds (cluster start and close included), the report's step seconds, the stage groups
     of its task stream."""
     from distributed import get_task_stream
@@ -180,8 +183,8 @@ def measure(scene: Path, settings: Settings, repeats: int) -> list[dict]:
     with tempfile.TemporaryDirectory(prefix="daskrad-scaling-") as tmp:
         out = Path(tmp) / "x.exr"
         # untimed: the client's numba kernels load from the cache (a small scene, one worker)
-        timed(CORNELL, Settings(workers=1, dashboard="127.0.0.1:0",
-                                element_size=bench_speed.QUICK_ELEMENT_SIZE, max_iterations=8), out)
+        timed(CORNELL, settings.replace(workers=1, element_size=bench_speed.QUICK_ELEMENT_SIZE,
+                                        max_iterations=8), out)
         for repeat in range(repeats):
             for c in MEASURED:
                 runs.append({**timed(scene, settings.replace(workers=c), out),
@@ -254,6 +257,9 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--element-size", type=float, default=None,
                         help=f"element size (default: {LARGE_ELEMENT_SIZE} for the Cornell box, "
                              "the scene's automatic size for --scene)")
+    parser.add_argument("--threads", action="store_true",
+                        help="workers as threads of the client's process (--workers C's "
+                             "default) instead of processes (a real cluster's stand-in)")
     parser.add_argument("--repeats", type=int, default=None,
                         help=f"runs per worker count (default {REPEATS}; --quick: 1)")
     parser.add_argument("--json", type=Path, default=None,
@@ -264,7 +270,7 @@ def main(argv: list[str] | None = None) -> dict:
     if size is None and args.scene is None:
         size = bench_speed.QUICK_ELEMENT_SIZE if args.quick else LARGE_ELEMENT_SIZE
     repeats = args.repeats or (1 if args.quick else REPEATS)
-    opts = {"dashboard": "127.0.0.1:0"}
+    opts = {"dashboard": "127.0.0.1:0", "processes": not args.threads}
     if size is not None:
         opts["element_size"] = size
     if args.quick:

@@ -82,7 +82,8 @@ PT_SPP = (16, 64, 256, 1024)
 #: Element size of the Cornell box for the workers table and bench_scaling (~59,000 elements
 #: before adaptive subdivision; 73,066 after it).
 LARGE_ELEMENT_SIZE = 7.0
-WORKERS = (0, 1, 2)
+#: The workers table's rows: ``(--workers, --processes)``; 0 is in-process threads, no Dask.
+WORKERS = ((0, False), (1, False), (2, False), (1, True), (2, True))
 #: ``--quick``: the workers table's scene (Cornell box, ~600 elements) and its shot cap.
 QUICK_ELEMENT_SIZE = 60.0
 QUICK_ITERATIONS = 64
@@ -202,11 +203,12 @@ def startup(cold: bool) -> dict:
 
 def workers(scenes: list[Path], element_size: float | None, max_iterations: int | None
             ) -> list[dict]:
-    """Whole-run wall time of each scene with --workers 0 (threads), 1 and 2."""
+    """Whole-run wall time of each scene with --workers 0 (threads, no Dask), 1 and 2 (a
+    LocalCluster of threads) and 1 and 2 with --processes."""
     rows = []
     for scene in scenes:
-        for n in WORKERS:
-            opts = {"workers": n, "dashboard": "127.0.0.1:0"}
+        for n, processes in WORKERS:
+            opts = {"workers": n, "processes": processes, "dashboard": "127.0.0.1:0"}
             if element_size is not None:
                 opts["element_size"] = element_size
             if max_iterations is not None:
@@ -214,16 +216,20 @@ def workers(scenes: list[Path], element_size: float | None, max_iterations: int 
             r = timed_run(scene, Settings(**opts), repeats=1)
             rep = r["report"]
             mem = rep.get("memory", {})
-            # a worker's peak (its process is the run's own); the in-process run's peak
-            # would be this benchmark process's, earlier runs included: not shown
-            peak = max([w["peak_mib"] for w in mem.get("workers", [])], default=None)
-            rows.append({"scene": scene.name, "workers": n, "seconds": r["seconds"],
+            # a worker process's peak (the process is the run's own); the in-process run's
+            # and the threads' peak would be this benchmark process's, earlier runs
+            # included: not shown
+            peak = max([w["peak_mib"] for w in mem.get("workers", [])], default=None) \
+                if processes else None
+            rows.append({"scene": scene.name, "workers": n, "processes": processes,
+                         "seconds": r["seconds"],
                          "elements": rep["counts"]["elements"], "shots": rep["iterations"],
                          "converged": rep["converged"], "peak MiB": peak,
                          "worker peaks MiB": [w["peak_mib"] for w in mem.get("workers", [])],
                          **{f"{k} s": v for k, v in rep["seconds"].items()}})
     for row in rows:
-        base = next(r for r in rows if r["scene"] == row["scene"] and r["workers"] == 1)
+        base = next(r for r in rows if r["scene"] == row["scene"] and r["workers"] == 1
+                    and r["processes"] == row["processes"])
         row["speed-up vs 1 worker"] = base["seconds"] / row["seconds"]
     return rows
 
@@ -276,11 +282,13 @@ def main(argv: list[str] | None = None) -> dict:
         size, cap = (None if args.scene else LARGE_ELEMENT_SIZE), None
     wrows = workers(scenes, size, cap)
     result["workers"] = wrows
-    print("\nWhole runs by --workers (0: in-process threads; LocalCluster start included)")
-    print(f"{'scene':<20}{'workers':>8}{'elements':>10}{'shots':>7}{'seconds':>9}{'direct':>8}"
-          f"{'solve':>8}{'render':>8}{'vs 1':>7}{'worker MiB':>11}")
+    print("\nWhole runs by --workers (0: in-process threads, no Dask; a LocalCluster of "
+          "threads, or of processes, its start included; vs 1: against 1 worker of its kind)")
+    print(f"{'scene':<20}{'workers':>8}{'kind':>10}{'elements':>10}{'shots':>7}{'seconds':>9}"
+          f"{'direct':>8}{'solve':>8}{'render':>8}{'vs 1':>7}{'worker MiB':>11}")
     for r in wrows:
-        print(f"{r['scene']:<20}{r['workers']:>8}{r['elements']:>10}{r['shots']:>7}"
+        kind = "-" if not r["workers"] else "processes" if r["processes"] else "threads"
+        print(f"{r['scene']:<20}{r['workers']:>8}{kind:>10}{r['elements']:>10}{r['shots']:>7}"
               f"{r['seconds']:>9.2f}{r['direct s']:>8.2f}{r['solve s']:>8.2f}"
               f"{r['render s']:>8.2f}{r['speed-up vs 1 worker']:>7.2f}"
               f"{'' if r['peak MiB'] is None else round(r['peak MiB']):>11}")

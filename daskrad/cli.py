@@ -128,9 +128,13 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
                                                       "(default: the file's first)")
     where = run.add_mutually_exclusive_group()
     where.add_argument("--workers", type=_nonneg_int,
-                       help="local worker processes with the Dask dashboard (default 0: in-process "
-                            "on a thread per core, faster on one machine)")
+                       help="a local Dask cluster of N workers with its dashboard (threads of "
+                            "this process unless --processes; default 0: no cluster, a thread "
+                            "per core)")
     where.add_argument("--scheduler", help="address of an existing Dask scheduler, tcp://HOST:PORT")
+    run.add_argument("--processes", action="store_const", const=True,
+                     help="--workers N as N worker processes reading the store, like the "
+                          "machines of a real cluster (slower on one machine)")
     run.add_argument("--method", help=f"form-factor method, {methods}{_default('method')}")
     run.add_argument("--resolution", type=_positive_int,
                      help=f"item-buffer side R (hemicube: top face side) {_default('resolution')}")

@@ -41,6 +41,7 @@ class Settings:
     edge_spp: int = 64                  # samples of a pixel whose spp samples differ (an
     #                                     edge, render.EDGE_STEP); <= spp: never
     workers: int = 0                    # 0: in-process, no cluster
+    processes: bool = False             # --workers N: worker processes, not threads of this one
     scheduler: str | None = None        # tcp://host:port of an existing cluster
     width: int | None = None            # image size; None: the camera's
     height: int | None = None
@@ -121,6 +122,10 @@ class Settings:
                                                        str(self.scheduler)):
             bad("scheduler", "must be an address like tcp://HOST:PORT")
         positive("connect_timeout")
+        if not isinstance(self.processes, bool):
+            bad("processes", "must be true or false")
+        if self.processes and (self.scheduler is not None or not self.workers):
+            raise OptionError("--processes is for a LocalCluster: give --workers N (N > 0)")
         integer("area_samples", 1, 64)
         positive("subdivide", zero=True)
         positive("rdiff", zero=True)

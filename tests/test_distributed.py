@@ -64,13 +64,14 @@ def test_reference_cases_are_what_the_issue_asks(reference):
                                   arrays["checkpoint/last/radiosity"].astype(np.float32))
 
 
-@pytest.mark.parametrize("case, workers", [("cornell", 1), ("cornell", 2), ("5k", 2),
-                                           ("5k", 4)])
+@pytest.mark.parametrize("case, workers, processes", [
+    ("cornell", 1, False), ("cornell", 2, True), ("5k", 2, True), ("5k", 2, False),
+    ("5k", 4, True)])
 def test_same_bits_for_any_number_of_workers(reference, tmp_path, cluster_client, case,
-                                             workers):
-    out = tmp_path / f"{case}-{workers}.exr"
-    settings = CASES[case].replace(workers=workers)
-    if workers == 2:  # the session's 2-worker cluster; 1 and 4 start their own LocalCluster
+                                             workers, processes):
+    out = tmp_path / f"{case}-{workers}-{processes}.exr"
+    settings = CASES[case].replace(workers=workers, processes=processes)
+    if workers == 2 and processes:  # the session's 2-process cluster; others start their own
         # the executor's store is the one the run solves into (a new run's partial store)
         store = Store(Outputs(out).working_store(resume=False), settings)
         executor = DaskExecutor(cluster_client, store)
@@ -86,6 +87,29 @@ def test_same_bits_for_any_number_of_workers(reference, tmp_path, cluster_client
     for w in memory["workers"]:     # a worker may have had no shooter to compute
         assert w["peak_mib"] > 0 and 0 <= w["row_cache_mib"] <= w["row_cache_limit_mib"]
     assert sum(w["row_cache_mib"] for w in memory["workers"]) > 0
+
+
+def test_workers_in_the_clients_process_get_contexts_in_memory_not_from_the_store(tmp_path):
+    # --workers N's default LocalCluster is threads of this process: the executor sees it,
+    # hands every task context over as the object itself (no store write, no load) and its
+    # dashboard link names the loopback address it listens on
+    from daskrad.distributed.dask_executor import start_local
+
+    settings = CASES["cornell"].replace(workers=2)
+    store = Store(tmp_path / "t.zarr", settings).open()
+    executor = start_local(settings, store)
+    try:
+        assert executor.shared and executor.workers == 2
+        assert executor.dashboard_link.startswith("http://127.0.0.1:")
+        loads = worker.loads
+        solved = solve_scene(load_scene(CORNELL), settings, executor)
+        assert solved.solution.iteration > 0 and executor.stats["tasks"] > 0
+        assert worker.loads == loads
+        assert "internal" not in store.group          # no context went into the store
+        assert worker.shared_kinds(store.path) == ["direct", "shoot"]
+    finally:
+        executor.close()
+    assert worker.shared_kinds(store.path) == []          # forgotten on close
 
 
 def test_worker_cache_loads_each_context_once_per_process(cluster_client, tmp_path):

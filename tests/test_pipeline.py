@@ -136,7 +136,8 @@ def cli_run(*args: str) -> subprocess.CompletedProcess:
                                     ["--width", "100000", "--height", "100000"],
                                     ["--dashboard", "notaport"],
                                     ["--scheduler", "notanaddress"],
-                                    ["--element-size", "0.01"]])
+                                    ["--element-size", "0.01"],
+                                    ["--processes", "--workers", "0"]])
 def test_bad_option_fails_at_once_and_leaves_earlier_outputs(earlier, tmp_path, option):
     # validated before the scene is loaded and before the old store is touched
     shutil.copytree(earlier, tmp_path / "out")

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 def connect(settings, store=None):
     """A Dask executor for ``settings``: ``--scheduler`` if given, else a LocalCluster of
-    ``settings.workers`` processes. ``store`` (a :class:`Store`) is where task contexts go."""
+    ``settings.workers`` workers (threads of this process, or processes with ``--processes``).
+    ``store`` (a :class:`Store`) is where task contexts go when workers need them there."""
     from daskrad.distributed.dask_executor import connect_scheduler, start_local
 
     if settings.scheduler:
@@ -26,12 +27,11 @@ def connect(settings, store=None):
 def auto_workers(scene, settings) -> int:
     """``--workers`` not given: 0, in-process on a thread per core (docs/design.md §4).
 
-    On one machine the threads win at every size measured (``bench_speed``, whole runs of the
-    Cornell box at 73,000 elements on 2 cores: 26.5 s in-process, 36.7 s on 2 workers, 54.6 s
-    on 1): the kernels release the GIL, and a LocalCluster pays its start, the store's task
-    contexts and the transfers. A cluster is for more than one machine (``--scheduler``) or
-    for watching the dashboard (``--workers N``). ``scene`` and ``settings`` are kept for a
-    rule that depends on them."""
+    On one machine a cluster only adds its scheduler: the kernels release the GIL, so the
+    in-process threads do what a LocalCluster's workers would (``bench_speed``'s workers
+    table). A cluster is for more than one machine (``--scheduler``) or for watching the
+    dashboard (``--workers N``). ``scene`` and ``settings`` are kept for a rule that depends
+    on them."""
     return 0
 
 

@@ -2,7 +2,9 @@
 run as named futures on a cluster (docs/design.md §4).
 
 Futures carry ids and ranges only; the geometry goes once into the store
-(:meth:`Store.put_context`) and each worker caches it (:mod:`daskrad.distributed.worker`).
+(:meth:`Store.put_context`) and each worker caches it (:mod:`daskrad.distributed.worker`),
+or, when the workers are threads of this very process (``--workers N``'s LocalCluster), it is
+handed to them in memory (:func:`daskrad.distributed.worker.share`): no copy, no store.
 Keys are ``formfactor-<generation>-<batch>-<part>-<run>``,
 ``direct-<generation>-<n>-<start>-<run>``, ``gather-<generation>-<n>-<start>-<token>-<run>``
 and ``tile-<generation>-<n>-<run>``: the dashboard groups them by their first word; the 8-hex
@@ -102,6 +104,8 @@ class DaskExecutor:
         self.addresses: list[str] = []     # the workers' addresses, sorted
         self.owner: dict[int, str] = {}
         self.rows = shooting.RowCache()    # rows the client received (set_geometry sizes it)
+        # workers running in this process share the client's memory: contexts need no store
+        self.shared = _shares_process(client)
         self._counted = -float("inf")
         self._count_workers()
         self.dashboard_link = _dashboard(client)
@@ -118,16 +122,17 @@ class DaskExecutor:
         """Put the task contexts in ``store`` from now on (the run's own store: a new run's
         partial store, whatever store the executor was made with)."""
         if store is not self.store:
+            if self.shared:
+                worker.unshare(self.store.path)
             self.store = store
             self._probed = False
 
     def set_geometry(self, shoot_ctx: shooting.ShootContext, generation: int = 0) -> None:
-        token = self.store.put_context("shoot", shoot_ctx)
+        token = self._put_context("shoot", shoot_ctx, generation)
         self.geometry = (generation, token)
         self.owner = {}                    # patch id -> the worker holding its row
         self.rows = shooting.RowCache(shooting.row_cache_bytes(shoot_ctx, physical_memory()))
         self._ahead = {}                   # patch id -> the future of its row, prefetched
-        self._probe("shoot", token)
         self.phase("shooting", 0.0, force=True)
 
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Batch:
@@ -241,8 +246,7 @@ class DaskExecutor:
         (``token``), every worker is probed for it, and future ``n`` is keyed
         ``key(n, item, token)-<run>``; the phase ``phase`` (detail headed ``what``) follows
         them on the dashboard."""
-        token = self.store.put_context(kind, ctx)
-        self._probe(kind, token)
+        token = self._put_context(kind, ctx, generation)
         futures = [
             self.client.submit(task, self.store.path, generation, token, *item,
                                key=f"{key(n, item, token)}-{self.run}", pure=False)
@@ -285,6 +289,8 @@ class DaskExecutor:
         return self.client.gather(futures)
 
     def close(self) -> None:
+        if self.shared:
+            worker.unshare(self.store.path)
         if self.own_client:
             self.client.close()
         if self.cluster is not None:
@@ -303,6 +309,19 @@ class DaskExecutor:
             self.workers = len(self.addresses)
             self._counted = now
 
+    def _put_context(self, kind: str, ctx, generation: int) -> str:
+        """Make ``ctx`` the ``kind`` context the tasks of ``generation`` read; returns the
+        token they name it by. Workers in other processes read it from the store (written
+        once: the token is a digest of the content; every worker probed first); workers in
+        this process get the object itself (:func:`worker.share`, a fresh token)."""
+        if self.shared:
+            token = uuid.uuid4().hex[:24]
+            worker.share(self.store.path, kind, generation, token, ctx)
+            return token
+        token = self.store.put_context(kind, ctx)
+        self._probe(kind, token)
+        return token
+
     def _probe(self, kind: str, token: str) -> None:
         """Every worker must open the store: say clearly when a remote one cannot."""
         if self._probed:
@@ -318,6 +337,14 @@ class DaskExecutor:
         self._probed = True
 
 
+def _shares_process(client) -> bool:
+    """Whether every worker of ``client`` runs in this process (a LocalCluster of threads):
+    each answers its process's random name (:data:`worker.PROCESS`), so a worker elsewhere,
+    even one with this pid on another machine, never matches."""
+    answers = client.run(worker.process)
+    return bool(answers) and all(name == worker.PROCESS for name in answers.values())
+
+
 def _dashboard(client) -> str | None:
     try:
         services = client.scheduler_info(n_workers=0).get("services", {})
@@ -327,18 +354,34 @@ def _dashboard(client) -> str | None:
 
 
 def start_local(settings, store: Store | None) -> DaskExecutor:
-    """``--workers N``: a LocalCluster of N processes with one thread each, on loopback."""
+    """``--workers N``: a LocalCluster of N workers with one thread each, its dashboard on
+    ``settings.dashboard`` (loopback by default).
+
+    The workers are threads of this process unless ``settings.processes``: the kernels
+    release the GIL, so threads run side by side as processes would, while they share the
+    client's memory: no task context goes through the store, and one row cache serves every
+    worker (``bench_speed``'s workers table measures both kinds). Processes stand in for the
+    machines of a real cluster (``--scheduler``): each reads the store and keeps its own
+    caches, and numba's threads are set to the worker's one thread.
+    """
     import dask
     from distributed import Client, LocalCluster
 
     routes = list(dask.config.get("distributed.scheduler.http.routes"))
+    kinds = ({"processes": True, "host": "127.0.0.1", "env": {"NUMBA_NUM_THREADS": "1"}}
+             if settings.processes else {"processes": False})
     with dask.config.set({"distributed.scheduler.http.routes": routes + [ROUTES_MODULE]}):
         cluster = LocalCluster(
-            n_workers=settings.workers, threads_per_worker=1, processes=True,
-            host="127.0.0.1", dashboard_address=settings.dashboard,
-            # numba's threads match the worker's one thread: N workers share N cores
-            env={"NUMBA_NUM_THREADS": "1"}, silence_logs=logging.ERROR)
-    return DaskExecutor(Client(cluster), store, cluster=cluster)
+            n_workers=settings.workers, threads_per_worker=1, silence_logs=logging.ERROR,
+            dashboard_address=settings.dashboard, **kinds)
+    ex = DaskExecutor(Client(cluster), store, cluster=cluster)
+    if ex.dashboard_link is not None:
+        # the link where the dashboard listens (settings.dashboard's host): a cluster of
+        # threads talks inproc:// and would name the machine's address instead
+        host = settings.dashboard.rsplit(":", 1)[0] or "127.0.0.1"
+        port = ex.client.scheduler_info(n_workers=0)["services"]["dashboard"]
+        ex.dashboard_link = f"http://{host}:{port}/status"
+    return ex
 
 
 def connect_scheduler(settings, store: Store | None) -> DaskExecutor:

@@ -6,12 +6,17 @@ few ids or a pixel range — and finds the geometry in this module's cache, fill
 package, not in ``__main__``, so it persists between tasks in a worker process (docs/stack.md: a
 task that reopens zarr costs 50–85 ms, a cache hit ~2 ms). The voxel grid of the render context is
 read from the store, so it is built once (by the client) and loaded once per worker.
+
+Workers that are threads of the client's own process (a LocalCluster's default,
+``processes=False``) skip the store: the client hands each context over in memory
+(:func:`share`), and the form-factor rows are one cache for all of them.
 """
 
 from __future__ import annotations
 
 import os
 import threading
+import uuid
 from collections import OrderedDict
 
 import numpy as np
@@ -29,6 +34,39 @@ _cache: OrderedDict = OrderedDict()
 _rows: OrderedDict = OrderedDict()  # (path, generation, token) → shooting.RowCache
 _lock = threading.Lock()          # a worker with several threads loads a context once
 loads = 0                         # contexts read from a store by this process (tests look)
+#: (store path, kind) → ((generation, token), context): contexts the client of this process
+#: handed over in memory (:func:`share`), the latest of each kind, never evicted by ``_cache``
+_shared: dict = {}
+#: Names this process: a worker answering the client's own value runs in the client's process.
+PROCESS = uuid.uuid4().hex
+
+
+def process() -> str:
+    """:data:`PROCESS` (``client.run(process)`` tells which workers share the client's)."""
+    return PROCESS
+
+
+def share(path: str, kind: str, generation: int, token: str, ctx) -> None:
+    """Hand the ``kind`` context over to this process's workers without the store (their
+    tasks name it by ``path``, ``generation`` and ``token`` as usual); it replaces the one of
+    that kind shared before."""
+    with _lock:
+        _shared[(path, kind)] = ((generation, token), ctx)
+
+
+def shared_kinds(path: str) -> list[str]:
+    """The kinds of context shared in memory for the store at ``path``."""
+    with _lock:
+        return sorted(kind for p, kind in _shared if p == path)
+
+
+def unshare(path: str) -> None:
+    """Forget the contexts and rows of the store at ``path`` (the executor closes)."""
+    with _lock:
+        for key in [k for k in _shared if k[0] == path]:
+            del _shared[key]
+        for key in [k for k in _rows if k[0] == path]:
+            del _rows[key]
 
 
 def context(path: str, kind: str, generation: int, token: str):
@@ -36,6 +74,9 @@ def context(path: str, kind: str, generation: int, token: str):
     global loads
     key = (path, kind, generation, token)
     with _lock:
+        shared = _shared.get((path, kind))
+        if shared is not None and shared[0] == (generation, token):
+            return shared[1]
         ctx = _cache.get(key)
         if ctx is None:
             ctx = load_context(path, kind, token)
