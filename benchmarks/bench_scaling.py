@@ -45,9 +45,10 @@ and one more than twice as fast all parallel. The measured efficiency is the who
   aside).
 
 No per-task scheduler cost is added (the old model's ``TASK_COST``, ~2 ms a task in flight, is
-gone): a run's tasks (one per new form-factor row, per direct-light range, per tile and per
-gather range; re-shot rows the client dropped aside, one task per worker holding some) do not
-depend on C, so their scheduling is already inside the measured serial shares. What the model
+gone): a run's tasks (one per new form-factor row, or per group of rows cheaper than a task,
+never fewer groups than workers; per direct-light range, per tile and per gather range;
+re-shot rows the client dropped aside, one task per worker holding some) depend on C only
+through that grouping, so their scheduling is already inside the measured serial shares. What the model
 leaves out: tasks of unequal cost (a group of ``n_g`` tasks is treated as ``n_g`` equal parts,
 so the task-limited model is optimistic), the client and the scheduler contending with the
 workers for cores (on a 2-core machine the C = 2 run shares its cores with them, so its

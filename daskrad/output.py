@@ -223,7 +223,9 @@ def report(scene: Scene, outputs: Outputs, settings: Settings, light: DirectLigh
         "memory": memory or {},
         "settings": settings.as_dict(),
         "image": {"width": image.camera.width, "height": image.camera.height,
-                  "mean_radiance": image.pixels.reshape(-1, 3).mean(axis=0)},
+                  "mean_radiance": image.pixels.reshape(-1, 3).mean(axis=0),
+                  # pixels sampled again at --edge-spp (render.render_tile_stats)
+                  "edge_pixels": int(image.stats.get("edges", 0))},
         "warnings": warnings,
     }
 

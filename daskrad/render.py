@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -752,6 +752,9 @@ class Image:
     seconds : float
     vertex_direct : (V, 3) float64 or None
         The direct part of ``context.vertex_radiance`` (:func:`vertex_split`).
+    stats : dict
+        What the tiles did, summed (:func:`render_tile_stats`; ``"edges"``: pixels sampled
+        again at ``edge_spp``).
     """
 
     pixels: np.ndarray
@@ -759,6 +762,7 @@ class Image:
     ambient: np.ndarray
     seconds: float = 0.0
     vertex_direct: np.ndarray | None = None
+    stats: dict = field(default_factory=dict)
 
     @property
     def camera(self) -> Camera:
@@ -781,26 +785,34 @@ def image(scene: Scene, light: DirectLight, sol: Solution, settings: Settings, e
                          "light intensities too large for a float64", scene.path)
     split = vertex_split(light, sol)
     ctx = context(scene, light, sol, settings, cam or camera(scene, settings), split)
-    out = pixels(ctx, executor)
+    out, stats = pixels_stats(ctx, executor)
     if not np.isfinite(out).all():
         raise SceneError("the image is not finite (NaN or inf radiance)", scene.path)
     return Image(pixels=out, context=ctx,
                  ambient=ambient(light.mesh.hierarchy, light.mesh.reflectance, sol.unshot),
-                 seconds=time.perf_counter() - t, vertex_direct=split[1])
+                 seconds=time.perf_counter() - t, vertex_direct=split[1], stats=stats)
 
 
 def pixels(ctx: RenderContext, executor=None) -> np.ndarray:
     """``(H, W, 3) float64``: the image of ``ctx``, tile by tile on ``executor`` (``tile-…``
     futures; default this process). The same bits either way, and from a context read back
     from a store (``daskrad render``)."""
+    return pixels_stats(ctx, executor)[0]
+
+
+def pixels_stats(ctx: RenderContext, executor=None) -> tuple[np.ndarray, dict]:
+    """:func:`pixels` and the tiles' :func:`render_tile_stats`, summed."""
     ctx = for_view(ctx, executor)
     parts = tiles(ctx.camera.width, ctx.camera.height)
     out = np.zeros((ctx.camera.height, ctx.camera.width, 3))
     done = (executor.tiles(ctx, parts) if executor is not None
-            else [render_tile(ctx, rows, cols) for rows, cols in parts])
-    for (rows, cols), tile in zip(parts, done, strict=True):
+            else [render_tile_stats(ctx, rows, cols) for rows, cols in parts])
+    stats: dict = {}
+    for (rows, cols), (tile, counts) in zip(parts, done, strict=True):
         out[rows, cols] = tile
-    return out
+        for k, v in counts.items():
+            stats[k] = stats.get(k, 0) + v
+    return out, stats
 
 
 def _hard_part(dctx, tvertices, elem_verts: np.ndarray, elem_reflectance: np.ndarray,

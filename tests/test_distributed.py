@@ -81,9 +81,13 @@ def test_same_bits_for_any_number_of_workers(reference, tmp_path, cluster_client
         report = run(CORNELL, out, settings, progress=False)
     assert report["workers"] == workers
     assert_same_run(reference[case], out)
+    # the tiles' counts come back from the workers too
+    ref_report = json.loads(reference[case].with_suffix(".json").read_text())
+    assert report["image"]["edge_pixels"] == ref_report["image"]["edge_pixels"] > 0
     # the report gives each worker's peak memory and its row cache, within its budget
     memory = report["memory"]
     assert len(memory["workers"]) == workers and memory["client_peak_mib"] > 0
+    assert memory["workers_in_client_process"] is not processes
     for w in memory["workers"]:     # a worker may have had no shooter to compute
         assert w["peak_mib"] > 0 and 0 <= w["row_cache_mib"] <= w["row_cache_limit_mib"]
     assert sum(w["row_cache_mib"] for w in memory["workers"]) > 0
@@ -110,6 +114,20 @@ def test_workers_in_the_clients_process_get_contexts_in_memory_not_from_the_stor
     finally:
         executor.close()
     assert worker.shared_kinds(store.path) == []          # forgotten on close
+
+
+def test_new_rows_are_grouped_into_tasks_by_their_measured_cost():
+    # one row a task until one was timed; cheap rows fill a task to TASK_SECONDS, but a batch
+    # still makes a task for every worker; dear rows stay one a task; order is kept
+    from daskrad.distributed.dask_executor import TASK_SECONDS, row_tasks
+
+    new = [0, 2, 3, 5, 6, 7]
+    assert row_tasks(new, None, 2) == [[0], [2], [3], [5], [6], [7]]
+    assert row_tasks(new, 2 * TASK_SECONDS, 2) == [[0], [2], [3], [5], [6], [7]]
+    assert row_tasks(new, TASK_SECONDS / 2, 2) == [[0, 2], [3, 5], [6, 7]]
+    assert row_tasks(new, TASK_SECONDS / 100, 2) == [[0, 2, 3], [5, 6, 7]]
+    assert row_tasks(new, TASK_SECONDS / 100, 4) == [[0, 2], [3, 5], [6, 7]]
+    assert row_tasks([], TASK_SECONDS, 2) == []
 
 
 def test_worker_cache_loads_each_context_once_per_process(cluster_client, tmp_path):

@@ -94,6 +94,11 @@ def test_pixels_on_an_edge_are_sampled_again_and_take_their_coverage():
     partial = (coverage > 0) & (coverage < 1)
     assert again[partial].mean() > 0.5 and again.sum() < 0.5 * size * size
     np.testing.assert_array_equal(img[again], full[again])
+    # the run report's count: every pixel that changed was sampled again (a pixel inside
+    # the square beside one on the outline may be too, and keep its value)
+    same, stats = render.pixels_stats(ctx)
+    np.testing.assert_array_equal(same[..., 0], img)
+    assert again.sum() <= stats["edges"] <= again.sum() + 8 * size
     corner = cut[:, None] & cut[None, :]           # both axes cut: errors add up
     edge = partial & ~corner
     assert np.abs(img - coverage)[edge].max() <= 1 / 16 + 1e-12
@@ -103,12 +108,16 @@ def test_pixels_on_an_edge_are_sampled_again_and_take_their_coverage():
 
 def test_edge_resampling_does_not_depend_on_the_tiles():
     ctx, _ = _square_context(0.11834, 50, 4, 64)
-    whole = render.render_tile(ctx, slice(0, 50), slice(0, 50))
+    whole, stats = render.render_tile_stats(ctx, slice(0, 50), slice(0, 50))
+    assert 0 < stats["edges"] < 50 * 50
     for tile in (7, 16):
         img = np.zeros_like(whole)
+        edges = 0
         for rows, cols in render.tiles(50, 50, tile):
-            img[rows, cols] = render.render_tile(ctx, rows, cols)
+            img[rows, cols], part = render.render_tile_stats(ctx, rows, cols)
+            edges += part["edges"]
         np.testing.assert_array_equal(img, whole)
+        assert edges == stats["edges"]        # the same pixels, whatever the tiles
 
 
 def test_camera_right_is_forward_cross_up():

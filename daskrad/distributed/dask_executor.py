@@ -16,6 +16,7 @@ its old result (docs/stack.md).
 from __future__ import annotations
 
 import logging
+import math
 import shutil
 import tempfile
 import time
@@ -36,6 +37,12 @@ COUNT_SECONDS = 2.0
 #: Seconds between two phase messages of one phase for the dashboard page.
 PHASE_SECONDS = 0.5
 
+#: Seconds of form-factor work a task of new rows aims at: a task costs the scheduler and the
+#: client ~1.6 ms of a 2-core machine's wall time (RenderPark's cube, 1,606 patches, 30,063
+#: elements, rows of ~3 ms: the solve took 7.2 s on 2 workers at a row a task against 4.6 s
+#: in-process), so cheap rows are sent several to a task (:meth:`DaskExecutor.shots`).
+TASK_SECONDS = 0.05
+
 #: Custom dashboard page module (``/daskrad``), added to the scheduler's HTTP routes.
 ROUTES_MODULE = "daskrad.distributed.dashboard"
 
@@ -45,11 +52,13 @@ class _Batch:
 
     ``rows`` holds the rows the client already has (position → row); ``groups[k]`` are the
     positions in the batch of the shooters future ``k`` computes. Each future answers
-    ``(worker address, rows)``: ``owner`` (patch id → address) learns where each row is kept,
-    and the client's ``cache`` keeps it for the patch's next shot."""
+    ``(worker address, rows, seconds)``: ``owner`` (patch id → address) learns where each row
+    is kept, the client's ``cache`` keeps it for the patch's next shot, and ``timed(rows,
+    seconds)`` hears what the rows of a future in ``fresh`` (one computing new rows) cost."""
 
     def __init__(self, futures: list, stats: dict, groups: list[list[int]], ids: np.ndarray,
-                 owner: dict, rows: dict, cache: shooting.RowCache):
+                 owner: dict, rows: dict, cache: shooting.RowCache, timed=None,
+                 fresh: set | None = None):
         self.futures = futures
         self.stats = stats
         self.groups = groups
@@ -57,12 +66,16 @@ class _Batch:
         self.owner = owner
         self.rows = rows
         self.cache = cache
+        self.timed = timed
+        self.fresh = fresh or set()
 
     def result(self) -> list:
         t = time.perf_counter()
         out = [self.rows.get(k) for k in range(len(self.ids))]
-        for future, group in zip(self.futures, self.groups, strict=True):
-            where, rows = future.result()
+        for n, (future, group) in enumerate(zip(self.futures, self.groups, strict=True)):
+            where, rows, seconds = future.result()
+            if self.timed is not None and n in self.fresh:
+                self.timed(len(rows), seconds)
             for k, row in zip(group, rows, strict=True):
                 out[k] = row
                 p = int(self.ids[k])
@@ -107,6 +120,7 @@ class DaskExecutor:
         # workers running in this process share the client's memory: contexts need no store
         self.shared = _shares_process(client)
         self._counted = -float("inf")
+        self.row_seconds = None            # seconds a new row takes, as measured so far
         self._count_workers()
         self.dashboard_link = _dashboard(client)
         self.stats = {"wait": 0.0, "tasks": 0, "ahead": 0}
@@ -133,10 +147,11 @@ class DaskExecutor:
         self.owner = {}                    # patch id -> the worker holding its row
         self.rows = shooting.RowCache(shooting.row_cache_bytes(shoot_ctx, physical_memory()))
         self._ahead = {}                   # patch id -> the future of its row, prefetched
+        self.row_seconds = None
         self.phase("shooting", 0.0, force=True)
 
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Batch:
-        """Batch ``batch_no``: the rows the client keeps, one task per new row, and one per
+        """Batch ``batch_no``: the rows the client keeps, tasks of new rows, and one per
         worker for the re-shots it holds.
 
         A patch shoots about five times in a converging solve. The client keeps every row it
@@ -147,8 +162,11 @@ class DaskExecutor:
         elsewhere, and compute the row again).
         A row never computed is a task of its own, placed by the scheduler: rows differ in
         cost by up to 6× (penumbra sampling), and single tasks keep both workers busy where a
-        fixed share of the batch per worker left one waiting. Where a row was computed is
-        learnt from the task's answer. The rows are the same bits wherever they are computed.
+        fixed share of the batch per worker left one waiting; only rows cheaper than a task's
+        own cost are grouped, enough of them to make :data:`TASK_SECONDS` by the mean time of
+        the rows so far, and never fewer tasks than workers. Where a row was computed is
+        learnt from the task's answer. The rows are the same bits wherever they are computed,
+        in tasks of any size.
         """
         generation, token = self.geometry
         self._count_workers()
@@ -157,13 +175,14 @@ class DaskExecutor:
         held: dict = {}
         new: list[int] = []
         have: dict = {}
-        futures, groups = [], []
+        futures, groups, fresh = [], [], set()
         for k, p in enumerate(ids.tolist()):
             row = self.rows.get(p)
             a = self.owner.get(p)
             if row is not None:
                 have[k] = row
             elif p in self._ahead:
+                fresh.add(len(futures))
                 futures.append(self._ahead.pop(p))
                 groups.append([k])
             elif a in alive:
@@ -176,13 +195,22 @@ class DaskExecutor:
                 key=f"formfactor-{generation}-{batch_no}-held{n}-{self.run}", pure=False,
                 workers=[a], allow_other_workers=True))
             groups.append(held[a])
-        for k in new:
+        for part in row_tasks(new, self.row_seconds, self.workers):
+            fresh.add(len(futures))
             futures.append(self.client.submit(
-                worker.shoot_task, self.store.path, generation, token, ids[[k]],
-                key=f"formfactor-{generation}-{batch_no}-new{k}-{self.run}", pure=False))
-            groups.append([k])
+                worker.shoot_task, self.store.path, generation, token, ids[part],
+                key=f"formfactor-{generation}-{batch_no}-new{part[0]}-{self.run}", pure=False))
+            groups.append(part)
         self.stats["tasks"] += len(futures)
-        return _Batch(futures, self.stats, groups, ids, self.owner, have, self.rows)
+        return _Batch(futures, self.stats, groups, ids, self.owner, have, self.rows,
+                      self._timed, fresh)
+
+    def _timed(self, rows: int, seconds: float) -> None:
+        """A task computed ``rows`` rows in ``seconds``: the running mean per row."""
+        if rows:
+            per = seconds / rows
+            self.row_seconds = per if self.row_seconds is None else \
+                0.9 * self.row_seconds + 0.1 * per
 
     def prefetch(self, patch_ids: np.ndarray) -> None:
         """Start the rows of ``patch_ids`` (in that order) that no one holds yet, one task
@@ -213,8 +241,9 @@ class DaskExecutor:
             self.stats["ahead"] += 1
             room -= 1
 
-    def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
-        """The image's tiles as ``tile-<generation>-<n>`` futures, in order."""
+    def tiles(self, ctx: render.RenderContext, tiles: list) -> list[tuple[np.ndarray, dict]]:
+        """The image's tiles as ``tile-<generation>-<n>`` futures, in order: each its image
+        and counts (:func:`daskrad.render.render_tile_stats`)."""
         generation = self.geometry[0] if self.geometry else 0
         return self._context_tasks(
             "render", ctx, generation, worker.tile_task,
@@ -255,9 +284,12 @@ class DaskExecutor:
         return self._gather(phase, futures, what)
 
     def memory(self) -> dict:
-        """Peak memory of the client and of each worker (MiB), and the row caches."""
+        """Peak memory of the client and of each worker (MiB), and the row caches; with
+        ``workers_in_client_process`` every worker's figures are the client process's."""
         states = self.client.run(worker.state)
+        # workers that are threads of this process report its peak, and one row cache
         return {"client_peak_mib": peak_mib(), **self.rows.usage(),
+                "workers_in_client_process": self.shared,
                 "workers": [{k: states[a][k] for k in ("peak_mib", "row_cache_mib",
                                                        "row_cache_limit_mib")}
                             for a in sorted(states)]}
@@ -335,6 +367,19 @@ class DaskExecutor:
                 f"{self.store.path} (e.g. {w}: {why}); with --scheduler the output must be "
                 "on a file system every worker shares", self.store.given)
         self._probed = True
+
+
+def row_tasks(new: list[int], row_seconds: float | None, workers: int) -> list[list[int]]:
+    """``new`` (positions of new rows in a batch) in order, cut into tasks of as many rows as
+    make :data:`TASK_SECONDS` at ``row_seconds`` a row, but into at least ``workers`` tasks
+    (when there are as many rows); one row a task until a row was timed."""
+    if not new:
+        return []
+    size = 1
+    if row_seconds is not None and row_seconds > 0:
+        size = max(1, min(math.ceil(TASK_SECONDS / row_seconds),
+                          math.ceil(len(new) / max(workers, 1))))
+    return [new[a:a + size] for a in range(0, len(new), size)]
 
 
 def _shares_process(client) -> bool:

@@ -8,7 +8,8 @@ Both executors expose the same calls, so the pipeline is written once:
   :func:`daskrad.formfactor.shooting.shoot_rows`;
 - ``prefetch(patch_ids)``: rows likely to be asked for soon, computed ahead on idle cores
   (or not at all: a hint);
-- ``tiles(render_ctx, tiles)`` → list of tile images of :func:`daskrad.render.render_tile`;
+- ``tiles(render_ctx, tiles)`` → list of ``(tile image, counts)`` of
+  :func:`daskrad.render.render_tile_stats`;
 - ``direct(ctx, ranges)`` → list of direct irradiances of
   :func:`daskrad.direct.direct_vertices`, one per vertex range, in order;
 - ``gather(gather_ctx, ranges)`` → list of the junction gather's operator rows
@@ -133,8 +134,8 @@ class InProcess:
             self._ahead[p] = self._submit(shooting.shoot_rows, ctx, [p], rows)
             self.prefetched += 1
 
-    def tiles(self, ctx: render.RenderContext, tiles: list) -> list[np.ndarray]:
-        return self._map(lambda t: render.render_tile(ctx, t[0], t[1]), tiles)
+    def tiles(self, ctx: render.RenderContext, tiles: list) -> list[tuple[np.ndarray, dict]]:
+        return self._map(lambda t: render.render_tile_stats(ctx, t[0], t[1]), tiles)
 
     def direct(self, ctx, ranges: list[tuple[int, int]]) -> list[np.ndarray]:
         """Direct irradiance at the vertex ranges (:func:`daskrad.direct.direct_vertices`)."""

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 import threading
+import time
 import uuid
 from collections import OrderedDict
 
@@ -90,10 +91,12 @@ def context(path: str, kind: str, generation: int, token: str):
 
 
 def shoot_task(path: str, generation: int, token: str, patch_ids: np.ndarray
-               ) -> tuple[str | None, list]:
-    """``(this worker's address, rows)``: the form-factor rows of the shooters ``patch_ids``
-    (:func:`daskrad.formfactor.shooting.shoot_rows`), with the rows this process already
-    computed for that geometry (the client sends a re-shot back where its row is kept)."""
+               ) -> tuple[str | None, list, float]:
+    """``(this worker's address, rows, seconds)``: the form-factor rows of the shooters
+    ``patch_ids`` (:func:`daskrad.formfactor.shooting.shoot_rows`), with the rows this process
+    already computed for that geometry (the client sends a re-shot back where its row is
+    kept), and the seconds they took (the client sizes its tasks by them)."""
+    start = time.perf_counter()
     key = (path, generation, token)
     ctx = context(path, "shoot", generation, token)
     with _lock:
@@ -102,7 +105,8 @@ def shoot_task(path: str, generation: int, token: str, patch_ids: np.ndarray
             rows = _rows[key] = shooting.RowCache(shooting.row_cache_bytes(ctx, memory()))
             while len(_rows) > 1:           # only the current geometry shoots
                 _rows.popitem(last=False)
-    return address(), shooting.shoot_rows(ctx, patch_ids, rows)
+    out = shooting.shoot_rows(ctx, patch_ids, rows)
+    return address(), out, time.perf_counter() - start
 
 
 def address() -> str | None:
@@ -134,10 +138,11 @@ def forget_rows() -> None:
 
 
 def tile_task(path: str, generation: int, token: str, r0: int, r1: int, c0: int, c1: int
-              ) -> np.ndarray:
-    """Radiance of the pixels ``[r0, r1) × [c0, c1)`` (:func:`daskrad.render.render_tile`)."""
+              ) -> tuple[np.ndarray, dict]:
+    """Radiance of the pixels ``[r0, r1) × [c0, c1)`` and what the tile did
+    (:func:`daskrad.render.render_tile_stats`)."""
     ctx = context(path, "render", generation, token)
-    return render.render_tile(ctx, slice(r0, r1), slice(c0, c1))
+    return render.render_tile_stats(ctx, slice(r0, r1), slice(c0, c1))
 
 
 def direct_task(path: str, generation: int, token: str, start: int, stop: int) -> np.ndarray:
