@@ -48,15 +48,15 @@ No per-task scheduler cost is added (the old model's ``TASK_COST``, ~2 ms a task
 gone): a run's tasks (one per new form-factor row, or per group of rows cheaper than a task,
 never fewer groups than workers; per direct-light range, per tile and per gather range;
 re-shot rows the client dropped aside, one task per worker holding some) depend on C only
-through that grouping, so their scheduling is already inside the measured serial shares. What the model
-leaves out: tasks of unequal cost (a group of ``n_g`` tasks is treated as ``n_g`` equal parts,
-so the task-limited model is optimistic), the client and the scheduler contending with the
-workers for cores (on a 2-core machine the C = 2 run shares its cores with them, so its
-measured efficiency is a lower bound and the fitted serial shares too large), a cluster's start
-growing with C (at 128 workers, a cluster started beforehand and reached with ``--scheduler``),
-and the transfers of larger clusters.
+through that grouping, so their scheduling is already inside the measured serial shares.
+What the model leaves out: tasks of unequal cost (a group of ``n_g`` tasks is treated as
+``n_g`` equal parts, so the task-limited model is optimistic), the client and the scheduler
+contending with the workers for cores (on a 2-core machine the C = 2 run shares its cores
+with them, so its measured efficiency is a lower bound and the fitted serial shares too
+large), a cluster's start growing with C (at 128 workers, a cluster started beforehand and
+reached with ``--scheduler``), and the transfers of larger clusters.
 
-``python -m benchmarks.bench_scaling [--quick] [--scene PATH] [--element-size S]
+``python -m benchmarks.bench_scaling [--quick] [--scene PATH] [--element-size S] [--threads]
 [--repeats N] [--json PATH]``; writes ``benchmarks/results/scaling.json`` (``--quick``: a
 smoke run, the Cornell box at 60-unit elements, 64 shots at most, a 64² image, one repeat;
 no JSON unless ``--json``). Never run it beside other timed work: it times wall seconds.
