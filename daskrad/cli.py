@@ -127,7 +127,7 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     run.add_argument("--camera", metavar="NAME", help="glTF: the camera to look through "
                                                       "(default: the file's first)")
     where = run.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=_nonneg_int,
+    where.add_argument("--workers", type=_nonneg_int, metavar="N",
                        help="a local Dask cluster of N workers with its dashboard (threads of "
                             "this process unless --processes; default 0: no cluster, a thread "
                             "per core)")
@@ -268,8 +268,9 @@ def _main(args) -> int:
         what = getattr(err, "strerror", None) or str(err) or type(err).__name__
         sys.stderr.write(f"daskrad: error: {where}{what}\n")
         return 2
-    except KeyboardInterrupt:
-        sys.stderr.write("daskrad: interrupted; the last checkpoint is kept (use --resume)\n")
+    except KeyboardInterrupt as err:
+        why = getattr(err, "message", "the last checkpoint is kept (use --resume)")
+        sys.stderr.write(f"daskrad: interrupted; {why}\n")
         return 130
     return 0
 

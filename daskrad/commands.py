@@ -13,6 +13,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from daskrad.errors import Interrupted
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
 
@@ -27,6 +28,17 @@ def settings_from_args(args) -> Settings:
     elif "workers" not in given:
         given["workers"] = None            # chosen from the scene's size by run()
     return Settings(**given)
+
+
+def resume_hint(output: str) -> str:
+    """What an interrupted run of ``output`` leaves: a store ``--resume`` continues (a new
+    run's partial store, or the finished one of an earlier run), or none yet."""
+    from daskrad.output import Outputs, is_store
+
+    outs = Outputs(Path(output))
+    if is_store(outs.partial) or is_store(outs.store):
+        return "the last checkpoint is kept (use --resume)"
+    return "it stopped before its solution store was written: nothing to resume"
 
 
 def run_command(args) -> None:
@@ -49,12 +61,12 @@ def run_command(args) -> None:
     try:
         run(args.scene, output, settings, progress=not args.quiet, config=args.config,
             resume=args.resume, camera=args.camera)
-    except SystemError as err:
+    except (SystemError, KeyboardInterrupt) as err:
         # Ctrl-C inside a numba kernel surfaces as "SystemError: ... returned a result with
         # an exception set" chained to the KeyboardInterrupt: report it as the interrupt
         if not interrupted(err):
             raise
-        raise KeyboardInterrupt from None
+        raise Interrupted(resume_hint(output)) from None
     out = Path(output)
     print(f"wrote {out}, {out.with_suffix('.png')}, {out.with_suffix('.json')} and the "
           f"store {out.with_suffix('.zarr')}")

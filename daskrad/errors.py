@@ -29,6 +29,14 @@ class OptionError(DaskradError):
     """A command-line option has a bad value."""
 
 
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C, with the line the CLI prints about what is left to resume from."""
+
+    def __init__(self, message: str):
+        self.message = message
+        super().__init__(message)
+
+
 class DaskradWarning(UserWarning):
     """Something daskrad changed in the user's input or could not do as asked; the run goes on.
 

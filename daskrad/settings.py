@@ -124,7 +124,10 @@ class Settings:
         positive("connect_timeout")
         if not isinstance(self.processes, bool):
             bad("processes", "must be true or false")
-        if self.processes and (self.scheduler is not None or not self.workers):
+        if self.processes and self.scheduler is not None:
+            raise OptionError("--processes is for --workers N (a LocalCluster daskrad starts); "
+                              "with --scheduler the cluster's own workers run the tasks")
+        if self.processes and not self.workers:
             raise OptionError("--processes is for a LocalCluster: give --workers N (N > 0)")
         integer("area_samples", 1, 64)
         positive("subdivide", zero=True)

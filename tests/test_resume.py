@@ -9,6 +9,7 @@ uninterrupted one applied.
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -94,6 +95,41 @@ def test_ctrl_c_then_resume_from_the_command_line(uninterrupted, tmp_path):
                              capture_output=True, text=True, timeout=240)
     assert resumed.returncode == 0, resumed.stderr
     assert_same_run(uninterrupted, out)
+
+
+def test_ctrl_c_in_a_terminal_with_worker_processes_is_one_line(uninterrupted, tmp_path):
+    # a terminal's Ctrl-C reaches every process of the group: the worker processes ignore it
+    # (no traceback of theirs) and the client says what is kept, once; then --resume on
+    # worker processes finishes to the same bits
+    out = tmp_path / "group.exr"
+    args = [sys.executable, "-m", "daskrad", "run", str(CORNELL), "-o", str(out),
+            "--workers", "2", "--processes", "--dashboard", "127.0.0.1:0", *ARGS]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    store = Outputs(out).partial
+    end = time.monotonic() + 180
+    while "checkpoint" not in _root_attrs(store):
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < end, "no checkpoint appeared"
+        time.sleep(0.02)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    lines = [line for line in stderr.splitlines() if not line.startswith("daskrad: dashboard")]
+    assert lines == ["daskrad: interrupted; the last checkpoint is kept (use --resume)"], stderr
+    resumed = subprocess.run([*args, "--resume"], capture_output=True, text=True, timeout=240)
+    assert resumed.returncode == 0, resumed.stderr
+    assert_same_run(uninterrupted, out)
+
+
+def test_an_interrupted_run_says_whether_there_is_anything_to_resume(tmp_path):
+    from daskrad.commands import resume_hint
+
+    out = tmp_path / "x.exr"
+    assert "nothing to resume" in resume_hint(str(out))      # stopped before its store
+    Store(Outputs(out).partial, SETTINGS).open()
+    assert "--resume" in resume_hint(str(out))
 
 
 def test_resume_of_a_finished_run_shoots_nothing_more(uninterrupted, tmp_path):

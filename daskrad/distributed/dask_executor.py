@@ -15,10 +15,13 @@ its old result (docs/stack.md).
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import shutil
+import signal
 import tempfile
+import threading
 import time
 import uuid
 from pathlib import Path
@@ -415,7 +418,8 @@ def start_local(settings, store: Store | None) -> DaskExecutor:
     routes = list(dask.config.get("distributed.scheduler.http.routes"))
     kinds = ({"processes": True, "host": "127.0.0.1", "env": {"NUMBA_NUM_THREADS": "1"}}
              if settings.processes else {"processes": False})
-    with dask.config.set({"distributed.scheduler.http.routes": routes + [ROUTES_MODULE]}):
+    with dask.config.set({"distributed.scheduler.http.routes": routes + [ROUTES_MODULE]}), \
+            _children_ignore_sigint():
         cluster = LocalCluster(
             n_workers=settings.workers, threads_per_worker=1, silence_logs=logging.ERROR,
             dashboard_address=settings.dashboard, **kinds)
@@ -427,6 +431,23 @@ def start_local(settings, store: Store | None) -> DaskExecutor:
         port = ex.client.scheduler_info(n_workers=0)["services"]["dashboard"]
         ex.dashboard_link = f"http://{host}:{port}/status"
     return ex
+
+
+@contextlib.contextmanager
+def _children_ignore_sigint():
+    """SIGINT ignored while the worker processes start, so that they keep ignoring it (an
+    ignored signal stays ignored across exec, and Python then installs no handler): Ctrl-C
+    in a terminal reaches every process of the group, and the client alone must answer it
+    (one line, the checkpoint kept; it closes the cluster), not each worker with a
+    traceback. Only from the main thread, where signal handlers can be set."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def connect_scheduler(settings, store: Store | None) -> DaskExecutor:
