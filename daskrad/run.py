@@ -58,6 +58,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
     store = Store(outputs.working_store(resume), settings, resume=resume, scene=scene)
     ex = executor or executor_for(settings, store)
     ex.use_store(store)
+    bar = None
     try:
         store.open()           # a new store, or the checkpoint to resume from
         _announce(ex, settings)
@@ -77,7 +78,9 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         store.finish(image)
         seconds["render"], t = time.perf_counter() - t, time.perf_counter()
         memory = ex.memory()
-    except Exception as err:
+    except BaseException as err:
+        if bar is not None:             # its last line ends before the error's line
+            bar.close()
         if not (resume or interrupted(err)):    # a stopped run keeps its checkpoint
             outputs.discard(Path(store.path))
         raise
