@@ -42,8 +42,9 @@ PHASE_SECONDS = 0.5
 
 #: Seconds of form-factor work a task of new rows aims at: a task costs the scheduler and the
 #: client ~1.6 ms of a 2-core machine's wall time (RenderPark's cube, 1,606 patches, 30,063
-#: elements, rows of ~3 ms: the solve took 7.2 s on 2 workers at a row a task against 4.6 s
-#: in-process), so cheap rows are sent several to a task (:meth:`DaskExecutor.shots`).
+#: elements, rows of ~5 ms: the solve took 7.2 s on 2 thread workers at a row a task, 6.3 s
+#: grouped, against 4.4–4.6 s in-process), so cheap rows are sent several to a task
+#: (:meth:`DaskExecutor.shots`).
 TASK_SECONDS = 0.05
 
 #: Custom dashboard page module (``/daskrad``), added to the scheduler's HTTP routes.
