@@ -104,10 +104,13 @@ class DaskExecutor:
     own_client : bool
         Close ``client`` in :meth:`close` (always when ``cluster`` is given); a client passed
         in by the caller (a test's session cluster) is left open.
+    dashboard_host : str, optional
+        The host the dashboard of a cluster started here listens on, for its link; None: the
+        client's own link.
     """
 
     def __init__(self, client, store: Store | None = None, cluster=None,
-                 own_client: bool = False):
+                 own_client: bool = False, dashboard_host: str | None = None):
         self.client = client
         self.cluster = cluster
         self.own_client = own_client or cluster is not None
@@ -126,7 +129,7 @@ class DaskExecutor:
         self._counted = -float("inf")
         self.row_seconds = None            # seconds a new row takes, as measured so far
         self._count_workers()
-        self.dashboard_link = _dashboard(client)
+        self.dashboard_link = _dashboard(client, dashboard_host)
         self.stats = {"wait": 0.0, "tasks": 0, "ahead": 0}
         self.geometry = None               # (generation, token) of the current geometry
         self._probed = False
@@ -394,12 +397,19 @@ def _shares_process(client) -> bool:
     return bool(answers) and all(name == worker.PROCESS for name in answers.values())
 
 
-def _dashboard(client) -> str | None:
+def _dashboard(client, host: str | None = None) -> str | None:
+    """The dashboard's link, None without one. ``host``: where a LocalCluster started here
+    listens; the link is built from it and the port, since a cluster of threads talks
+    inproc:// and its ``client.dashboard_link`` would name the machine's address instead."""
     try:
         services = client.scheduler_info(n_workers=0).get("services", {})
     except Exception:  # noqa: BLE001 - no dashboard is not an error
         return None
-    return client.dashboard_link if "dashboard" in services else None
+    if "dashboard" not in services:
+        return None
+    if host is None:
+        return client.dashboard_link
+    return f"http://{host or '127.0.0.1'}:{services['dashboard']}/status"
 
 
 def start_local(settings, store: Store | None) -> DaskExecutor:
@@ -424,14 +434,8 @@ def start_local(settings, store: Store | None) -> DaskExecutor:
         cluster = LocalCluster(
             n_workers=settings.workers, threads_per_worker=1, silence_logs=logging.ERROR,
             dashboard_address=settings.dashboard, **kinds)
-    ex = DaskExecutor(Client(cluster), store, cluster=cluster)
-    if ex.dashboard_link is not None:
-        # the link where the dashboard listens (settings.dashboard's host): a cluster of
-        # threads talks inproc:// and would name the machine's address instead
-        host = settings.dashboard.rsplit(":", 1)[0] or "127.0.0.1"
-        port = ex.client.scheduler_info(n_workers=0)["services"]["dashboard"]
-        ex.dashboard_link = f"http://{host}:{port}/status"
-    return ex
+    return DaskExecutor(Client(cluster), store, cluster=cluster,
+                        dashboard_host=settings.dashboard.rsplit(":", 1)[0])
 
 
 @contextlib.contextmanager

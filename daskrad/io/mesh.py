@@ -46,7 +46,7 @@ def write_mesh(path: str | Path, vertices: np.ndarray, triangles: np.ndarray,
     if not path.parent.is_dir():
         raise OptionError(f"no such directory for the export: {path.parent}")
     if path.is_symlink() or (path.exists() and not (path.is_file()
-                                                    and written_by_daskrad(path))):
+                                                    and _carries_mark(path))):
         raise OptionError("exists and was not written by daskrad; daskrad never replaces "
                           "what it did not make (move it or choose another name)", path)
     radiance = np.asarray(radiance, np.float64)
@@ -93,7 +93,7 @@ def _marked(kind: str, data: bytes) -> bytes:
     return data[:8] + (12 + len(out)).to_bytes(4, "little") + out
 
 
-def written_by_daskrad(path: str | Path) -> bool:
+def _carries_mark(path: str | Path) -> bool:
     """Whether the mesh file at ``path`` carries :data:`MARK` (:func:`write_mesh` wrote it)."""
     try:
         with open(path, "rb") as f:
