@@ -119,8 +119,11 @@ def test_workers_in_the_clients_process_get_contexts_in_memory_not_from_the_stor
 def test_new_rows_are_grouped_into_tasks_by_their_measured_cost():
     # one row a task until one was timed; cheap rows fill a task to TASK_SECONDS, but a batch
     # still makes a task for every worker; dear rows stay one a task; order is kept
-    from daskrad.distributed.dask_executor import TASK_SECONDS, row_tasks
+    from daskrad.distributed.dask_executor import TASK_SECONDS, row_tasks, rows_per_task
 
+    # a prefetched task (no batch to share among workers) takes rows_per_task rows
+    assert [rows_per_task(x) for x in (None, 0.0, 2 * TASK_SECONDS, TASK_SECONDS / 2,
+                                       TASK_SECONDS / 100)] == [1, 1, 1, 2, 100]
     new = [0, 2, 3, 5, 6, 7]
     assert row_tasks(new, None, 2) == [[0], [2], [3], [5], [6], [7]]
     assert row_tasks(new, 2 * TASK_SECONDS, 2) == [[0], [2], [3], [5], [6], [7]]

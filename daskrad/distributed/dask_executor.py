@@ -54,11 +54,13 @@ ROUTES_MODULE = "daskrad.distributed.dashboard"
 class _Batch:
     """A batch's futures; ``result()`` gives the rows in shooter order.
 
-    ``rows`` holds the rows the client already has (position → row); ``groups[k]`` are the
-    positions in the batch of the shooters future ``k`` computes. Each future answers
-    ``(worker address, rows, seconds)``: ``owner`` (patch id → address) learns where each row
-    is kept, the client's ``cache`` keeps it for the patch's next shot, and ``timed(rows,
-    seconds)`` hears what the rows of a future in ``fresh`` (one computing new rows) cost."""
+    ``rows`` holds the rows the client already has (position → row); ``groups[k]`` is
+    ``(patch ids, positions)``: the patches whose rows future ``k`` computes, in its order, and
+    each one's position in the batch (−1 for a row computed ahead for a later batch). Each
+    future answers ``(worker address, rows, seconds)``: ``owner`` (patch id → address) learns
+    where each row is kept, the client's ``cache`` keeps every row for the patch's next shot,
+    and ``timed(rows, seconds)`` hears what the rows of a future in ``fresh`` (one computing
+    new rows, counted once) cost."""
 
     def __init__(self, futures: list, stats: dict, groups: list[list[int]], ids: np.ndarray,
                  owner: dict, rows: dict, cache: shooting.RowCache, timed=None,
@@ -80,9 +82,10 @@ class _Batch:
             where, rows, seconds = future.result()
             if self.timed is not None and n in self.fresh:
                 self.timed(len(rows), seconds)
-            for k, row in zip(group, rows, strict=True):
-                out[k] = row
-                p = int(self.ids[k])
+            pids, slots = group
+            for p, k, row in zip(pids, slots, rows, strict=True):
+                if k >= 0:
+                    out[k] = row
                 self.cache.put(p, row)
                 if where is not None:
                     self.owner[p] = where
@@ -132,6 +135,9 @@ class DaskExecutor:
         self.dashboard_link = _dashboard(client, dashboard_host)
         self.stats = {"wait": 0.0, "tasks": 0, "ahead": 0}
         self.geometry = None               # (generation, token) of the current geometry
+        self._ahead: dict = {}             # patch id -> the future of its row, prefetched
+        self._ahead_ids: dict = {}         # a prefetched future's key -> its patch ids
+        self._counted_ahead: set = set()   # keys of prefetched futures a batch has timed
         self._probed = False
         self._phase = (None, -float("inf"))
         # the dashboard page shows a phase from the first second: the mesh is built next
@@ -154,6 +160,8 @@ class DaskExecutor:
         self.owner = {}                    # patch id -> the worker holding its row
         self.rows = shooting.RowCache(shooting.row_cache_bytes(shoot_ctx, physical_memory()))
         self._ahead = {}                   # patch id -> the future of its row, prefetched
+        self._ahead_ids = {}               # a prefetched future's key -> its patch ids
+        self._counted_ahead = set()        # keys of prefetched futures a batch has timed
         self.row_seconds = None
         self.phase("shooting", 0.0, force=True)
 
@@ -183,15 +191,23 @@ class DaskExecutor:
         new: list[int] = []
         have: dict = {}
         futures, groups, fresh = [], [], set()
+        position = {p: k for k, p in enumerate(ids.tolist())}
+        taken: dict = {}                   # key of a prefetched future -> its index here
         for k, p in enumerate(ids.tolist()):
             row = self.rows.get(p)
             a = self.owner.get(p)
             if row is not None:
                 have[k] = row
             elif p in self._ahead:
-                fresh.add(len(futures))
-                futures.append(self._ahead.pop(p))
-                groups.append([k])
+                future = self._ahead[p]
+                if future.key not in taken:
+                    taken[future.key] = len(futures)
+                    if future.key not in self._counted_ahead:
+                        self._counted_ahead.add(future.key)
+                        fresh.add(len(futures))
+                    futures.append(future)
+                    pids = self._ahead_ids[future.key]
+                    groups.append((pids, [position.get(q, -1) for q in pids]))
             elif a in alive:
                 held.setdefault(a, []).append(k)
             else:
@@ -201,13 +217,13 @@ class DaskExecutor:
                 worker.shoot_task, self.store.path, generation, token, ids[held[a]],
                 key=f"formfactor-{generation}-{batch_no}-held{n}-{self.run}", pure=False,
                 workers=[a], allow_other_workers=True))
-            groups.append(held[a])
+            groups.append((ids[held[a]].tolist(), held[a]))
         for part in row_tasks(new, self.row_seconds, self.workers):
             fresh.add(len(futures))
             futures.append(self.client.submit(
                 worker.shoot_task, self.store.path, generation, token, ids[part],
                 key=f"formfactor-{generation}-{batch_no}-new{part[0]}-{self.run}", pure=False))
-            groups.append(part)
+            groups.append((ids[part].tolist(), part))
         self.stats["tasks"] += len(futures)
         return _Batch(futures, self.stats, groups, ids, self.owner, have, self.rows,
                       self._timed, fresh)
@@ -220,33 +236,42 @@ class DaskExecutor:
                 0.9 * self.row_seconds + 0.1 * per
 
     def prefetch(self, patch_ids: np.ndarray) -> None:
-        """Start the rows of ``patch_ids`` (in that order) that no one holds yet, one task
-        each, while fewer prefetched tasks than workers are unfinished: a worker that would
-        wait for the client's next batch computes a row the solve will mostly ask for within
-        a few batches (:func:`daskrad.solve.solve`), and a batch submitted next waits behind
-        at most one such task per worker. The next batch that shoots the patch takes the
-        future. Not while the client's row cache is half full (a dropped row costs twice).
-        Futures of patches no longer offered are released (the worker keeps a finished row
-        in its own cache, where a later shot of the patch may find it)."""
+        """Start the rows of ``patch_ids`` (in that order) that no one holds yet, while fewer
+        prefetched tasks than workers are unfinished: a worker that would wait for the
+        client's next batch computes rows the solve will mostly ask for within a few batches
+        (:func:`daskrad.solve.solve`), and a batch submitted next waits behind at most one
+        such task per worker. A task takes as many rows as make :data:`TASK_SECONDS`
+        (:func:`row_tasks`; one until a row was timed): each task costs the scheduler and the
+        client as much as a cheap row. A batch that shoots one of the patches takes the
+        task's future and keeps all of its rows. Not while the client's row cache is half
+        full (a dropped row costs twice). Patches no longer offered, or whose row came, are
+        forgotten (a future nobody holds is released; the worker keeps a finished row in its
+        own cache, where a later shot of the patch may find it)."""
         offered = set(np.asarray(patch_ids).tolist())
-        for p in [p for p in self._ahead if p not in offered]:
-            self._ahead.pop(p).release()
+        for p in [p for p in self._ahead if p not in offered or self.rows.has(p)]:
+            del self._ahead[p]
+        live = {f.key for f in self._ahead.values()}
+        self._ahead_ids = {k: v for k, v in self._ahead_ids.items() if k in live}
         if self.geometry is None or self.rows.nbytes > self.rows.max_bytes // 2:
             return
         generation, token = self.geometry
-        room = self.workers - sum(not f.done() for f in self._ahead.values())
-        for p in np.asarray(patch_ids).tolist():
-            if room <= 0:
-                break
-            if p in self._ahead or p in self.owner or self.rows.has(p):
-                continue
-            self._ahead[p] = self.client.submit(
+        room = self.workers - len({f.key for f in self._ahead.values() if not f.done()})
+        if room <= 0:
+            return
+        wanted = [p for p in np.asarray(patch_ids).tolist()
+                  if p not in self._ahead and p not in self.owner and not self.rows.has(p)]
+        size = rows_per_task(self.row_seconds)
+        for a in range(0, min(len(wanted), room * size), size):
+            part = wanted[a:a + size]
+            key = f"formfactor-{generation}-ahead{part[0]}-{self.run}"
+            future = self.client.submit(
                 worker.shoot_task, self.store.path, generation, token,
-                np.array([p], np.int64), key=f"formfactor-{generation}-ahead{p}-{self.run}",
-                pure=False)
+                np.array(part, np.int64), key=key, pure=False)
+            self._ahead_ids[key] = part
+            for p in part:
+                self._ahead[p] = future
             self.stats["tasks"] += 1
             self.stats["ahead"] += 1
-            room -= 1
 
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[tuple[np.ndarray, dict]]:
         """The image's tiles as ``tile-<generation>-<n>`` futures, in order: each its image
@@ -376,16 +401,21 @@ class DaskExecutor:
         self._probed = True
 
 
+def rows_per_task(row_seconds: float | None) -> int:
+    """How many rows of ``row_seconds`` each make :data:`TASK_SECONDS` (1 until a row was
+    timed, and for rows dearer than a task)."""
+    if row_seconds is None or row_seconds <= 0:
+        return 1
+    return max(1, math.ceil(TASK_SECONDS / row_seconds))
+
+
 def row_tasks(new: list[int], row_seconds: float | None, workers: int) -> list[list[int]]:
-    """``new`` (positions of new rows in a batch) in order, cut into tasks of as many rows as
-    make :data:`TASK_SECONDS` at ``row_seconds`` a row, but into at least ``workers`` tasks
-    (when there are as many rows); one row a task until a row was timed."""
+    """``new`` (positions of new rows in a batch) in order, cut into tasks of
+    :func:`rows_per_task` rows, but into at least ``workers`` tasks (when there are as many
+    rows)."""
     if not new:
         return []
-    size = 1
-    if row_seconds is not None and row_seconds > 0:
-        size = max(1, min(math.ceil(TASK_SECONDS / row_seconds),
-                          math.ceil(len(new) / max(workers, 1))))
+    size = max(1, min(rows_per_task(row_seconds), math.ceil(len(new) / max(workers, 1))))
     return [new[a:a + size] for a in range(0, len(new), size)]
 
 
