@@ -111,6 +111,12 @@ def test_workers_in_the_clients_process_get_contexts_in_memory_not_from_the_stor
         assert worker.loads == loads
         assert "internal" not in store.group          # no context went into the store
         assert worker.shared_kinds(store.path) == ["direct", "shoot"]
+        # ... and the rows are one cache, the client's, within one budget for the process:
+        # each worker reports the client's figures, not a second budget of its own
+        memory = executor.memory()
+        assert memory["workers_in_client_process"] and memory["row_cache_mib"] > 0
+        assert [(w["row_cache_mib"], w["row_cache_limit_mib"]) for w in memory["workers"]] \
+            == [(memory["row_cache_mib"], memory["row_cache_limit_mib"])] * 2
     finally:
         executor.close()
     assert worker.shared_kinds(store.path) == []          # forgotten on close

@@ -158,7 +158,11 @@ class DaskExecutor:
         token = self._put_context("shoot", shoot_ctx, generation)
         self.geometry = (generation, token)
         self.owner = {}                    # patch id -> the worker holding its row
-        self.rows = shooting.RowCache(shooting.row_cache_bytes(shoot_ctx, physical_memory()))
+        budget = shooting.row_cache_bytes(shoot_ctx, physical_memory())
+        # workers that are threads of this process fill the client's own cache: the rows are
+        # the same objects, kept and counted once within one budget for the process
+        self.rows = (worker.row_cache(self.store.path, generation, token, shoot_ctx, budget)
+                     if self.shared else shooting.RowCache(budget))
         self._ahead = {}                   # patch id -> the future of its row, prefetched
         self._ahead_ids = {}               # a prefetched future's key -> its patch ids
         self._counted_ahead = set()        # keys of prefetched futures a batch has timed

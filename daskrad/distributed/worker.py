@@ -97,16 +97,28 @@ def shoot_task(path: str, generation: int, token: str, patch_ids: np.ndarray
     already computed for that geometry (the client sends a re-shot back where its row is
     kept), and the seconds they took (the client sizes its tasks by them)."""
     start = time.perf_counter()
-    key = (path, generation, token)
     ctx = context(path, "shoot", generation, token)
+    out = shooting.shoot_rows(ctx, patch_ids, row_cache(path, generation, token, ctx))
+    return address(), out, time.perf_counter() - start
+
+
+def row_cache(path: str, generation: int, token: str, ctx: shooting.ShootContext,
+              budget: int | None = None) -> shooting.RowCache:
+    """This process's form-factor rows of the shoot context ``ctx`` (named by ``path``,
+    ``generation``, ``token``), made on first use with ``budget`` bytes (default: sized from
+    this worker's memory). Only the current geometry's rows are kept. A client whose workers
+    are threads of its process takes this very cache for its own (one cache, one budget for
+    the whole process: :meth:`daskrad.distributed.dask_executor.DaskExecutor.set_geometry`)."""
+    key = (path, generation, token)
     with _lock:
         rows = _rows.get(key)
         if rows is None:
-            rows = _rows[key] = shooting.RowCache(shooting.row_cache_bytes(ctx, memory()))
+            if budget is None:
+                budget = shooting.row_cache_bytes(ctx, memory())
+            rows = _rows[key] = shooting.RowCache(budget)
             while len(_rows) > 1:           # only the current geometry shoots
                 _rows.popitem(last=False)
-    out = shooting.shoot_rows(ctx, patch_ids, rows)
-    return address(), out, time.perf_counter() - start
+        return rows
 
 
 def address() -> str | None:
