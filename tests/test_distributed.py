@@ -263,30 +263,6 @@ def test_without_workers_option_a_run_stays_in_process():
     assert settings_from_args(explicit).workers == 0
 
 
-def test_a_cluster_started_beside_loading_is_closed_when_the_scene_is_refused(tmp_path):
-    # --workers N starts its LocalCluster of threads while the scene loads (daskrad.
-    # distributed.Starting); a scene refused meanwhile must not leave that cluster running
-    import threading
-
-    from daskrad.errors import SceneError
-
-    bad = tmp_path / "bad.obj"
-    bad.write_text("v 0 0 0\nf 1 2 3\n")
-    before = {t.ident for t in threading.enumerate()}
-    with pytest.raises(SceneError, match="out of range"):
-        run(bad, tmp_path / "out.exr", Settings(workers=2, dashboard="127.0.0.1:0"),
-            progress=False)
-    deadline = time.monotonic() + 10.0
-    while time.monotonic() < deadline:
-        left = [t.name for t in threading.enumerate() if t.ident not in before]
-        if not left:
-            break
-        time.sleep(0.1)
-    assert left == []
-    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith(".")) == \
-        ["bad.obj"]
-
-
 def test_lit_room_direct_pass_same_bits_in_process_and_on_two_workers(tmp_path, cluster_client):
     # the two-pass pipeline with point, directional and area lights, adaptive subdivision and
     # the per-pixel pass: direct-light futures, form factors and tiles all on the 2 workers
