@@ -245,7 +245,7 @@ class DaskExecutor:
         client's next batch computes rows the solve will mostly ask for within a few batches
         (:func:`daskrad.solve.solve`), and a batch submitted next waits behind at most one
         such task per worker. A task takes as many rows as make :data:`TASK_SECONDS`
-        (:func:`row_tasks`; one until a row was timed): each task costs the scheduler and the
+        (:func:`rows_per_task`; one until a row was timed): each task costs the scheduler and the
         client as much as a cheap row. A batch that shoots one of the patches takes the
         task's future and keeps all of its rows. Not while the client's row cache is half
         full (a dropped row costs twice). Patches no longer offered, or whose row came, are
