@@ -18,6 +18,7 @@ from daskrad.kernels.tolerances import (  # noqa: F401  (re-exported)
     RAY_EPS,
     SHADOW_SHORTEN,
     SPHERE_PAD,
+    WINDOW_CLIP_ANGLE,
     WINDOW_MIN,
 )
 

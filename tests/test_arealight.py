@@ -11,7 +11,7 @@ import pytest
 from daskrad import cli, direct, tolerances
 from daskrad.errors import OptionError
 from daskrad.formfactor import analytic_rows
-from daskrad.kernels.arealight import HINT, area_irradiance_stats
+from daskrad.kernels.arealight import HINT, area_irradiance_stats, clip_planes, clip_polygon
 from daskrad.kernels.direct import irradiance_points
 from daskrad.kernels.geometry import orthonormal_basis
 from daskrad.kernels.grid import build_grid
@@ -122,6 +122,65 @@ def test_half_hidden_light_within_the_window_bound(resolution):
     err = abs(H[0, 0] / (math.pi * LE[0] * F_light) - V)
     assert err <= bound
     np.testing.assert_allclose(H[0] / LE, H[0, 0] / LE[0], rtol=1e-15)  # one V for all colours
+
+
+def _clip(tri, planes, count):
+    poly = np.zeros((6, 8))
+    poly[:3, :len(tri)] = np.asarray(tri, float).T
+    n = clip_polygon(poly, len(tri), planes, count)
+    return poly[:3, :n].T.copy()
+
+
+def _area3(poly):
+    """Area of a planar polygon ``(n, 3)`` (fan of cross products)."""
+    return 0.5 * np.linalg.norm(sum(np.cross(poly[i] - poly[0], poly[i + 1] - poly[0])
+                                    for i in range(1, len(poly) - 1)))
+
+
+def test_occluders_are_clipped_to_the_widened_pyramid_exactly():
+    # kernels/arealight draws only an occluder's part inside the pyramid from the eye to the
+    # light widened by WINDOW_CLIP_ANGLE (a wall near the eye subtends tens of degrees, the
+    # light a few). The widened pyramid holds the whole light with the margin, and the clip is
+    # the exact intersection: a triangle cut by one plane keeps the analytic area; one wholly
+    # inside is unchanged, one wholly outside vanishes.
+    eye = P + OFF * UP
+    planes = np.zeros((5, 5))
+    delta = tolerances.WINDOW_CLIP_ANGLE
+    clip_planes(*eye, LIGHT, 4, delta, planes)
+    rng = np.random.default_rng(3)
+    uv = rng.random((500, 2))
+    inside = (LIGHT[0] + uv[:, :1] * (LIGHT[1] - LIGHT[0]) + uv[:, 1:] * (LIGHT[3] - LIGHT[0]))
+    for a in range(4):
+        k, kd = planes[a, :3], planes[a, 3]
+        assert abs(np.linalg.norm(k) - 1.0) < 1e-12
+        # every point of the light is inside by at least sin(delta) times its distance from
+        # the edge's line seen from the eye (exactly that on the edge itself)
+        assert np.all(inside @ k - kd > 0.0)
+        edge = LIGHT[a] + np.linspace(0, 1, 11)[:, None] * (LIGHT[(a + 1) % 4] - LIGHT[a])
+        d = edge - eye
+        along = (LIGHT[(a + 1) % 4] - LIGHT[a]) / np.linalg.norm(LIGHT[(a + 1) % 4] - LIGHT[a])
+        perp = np.linalg.norm(d - (d @ along)[:, None] * along, axis=1)
+        np.testing.assert_allclose(d @ k, perp * math.sin(delta), rtol=1e-12)
+    # one plane: x >= 1 cuts the triangle (0,0,0) (2,0,0) (0,2,0) to (1,0,0) (2,0,0) (1,1,0)
+    one = np.zeros((5, 5))
+    one[0, :4] = [1.0, 0.0, 0.0, 1.0]
+    tri = [[0.0, 0, 0], [2, 0, 0], [0, 2, 0]]
+    cut = _clip(tri, one, 1)
+    assert len(cut) == 3 and _area3(cut) == pytest.approx(0.5, rel=1e-15)
+    assert np.array_equal(_clip([[1.5, 0, 0], [2, 0, 0], [1.5, 1, 0]], one, 1),
+                          np.array([[1.5, 0, 0], [2, 0, 0], [1.5, 1, 0]]))
+    assert len(_clip([[0.0, 0, 0], [0.5, 0, 0], [0, 0.5, 0]], one, 1)) < 3
+    # two triangles sharing an edge meet the plane at the same bits there, whichever way
+    # round they walk the edge (their projections stay watertight)
+    # (computed from either end, this crossing differs in its last bits)
+    other = np.zeros((5, 5))
+    other[0, :4] = [1.0, 0.0, 0.0, 1.37]
+    u, v = [0.1, 0.3, 0.7], [2.3, 1.1, -0.4]
+    a = _clip([u, v, [0.2, 1.9, 0.1]], other, 1)
+    b = _clip([v, u, [1.9, -1.0, 0.3]], other, 1)
+    line = np.array(u) + np.outer((1.37 - 0.1) / 2.2, np.subtract(v, u))
+    on_edge = [q for q in a if np.allclose(q, line[0], rtol=0, atol=1e-12)]
+    assert len(on_edge) == 1 and any(np.array_equal(on_edge[0], q) for q in b)
 
 
 def test_fully_hidden_light_gives_zero_through_the_pipeline():

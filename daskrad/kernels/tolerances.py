@@ -54,6 +54,16 @@ SPHERE_PAD = 1e-12
 #: light's centroid instead (:mod:`daskrad.kernels.arealight`).
 WINDOW_MIN = 1e-12
 
+#: An occluder is clipped to the pyramid from the eye to its light, widened by this angle
+#: (radians) on every side, before it is projected (:mod:`daskrad.kernels.arealight`): the
+#: clip's own edges then project well outside the light's pixels (2° is ~900 times the
+#: sagitta of the 1° polyline pieces, and a margin relative to the light's size was not
+#: enough for a light seen edge-on), so only the occluder's own edges decide which light
+#: pixels it hides. Measured (8,192 vertices each of RenderPark's office and classroom): the
+#: window method 25 % / 16 % faster, the irradiance summed over the vertices within 2e-5 of
+#: the unclipped one's, the vertices that moved most as close to 4,096 shadow rays as before.
+WINDOW_CLIP_ANGLE = 2.0 * 3.141592653589793 / 180.0
+
 #: The reference path tracer's shadow ray to a point of a light stops this fraction of the
 #: distance short of it (besides the absolute ray offset), so the light's own triangle does not
 #: block it (:mod:`daskrad.kernels.pathtrace`).
