@@ -229,7 +229,8 @@ def clip_planes(ex, ey, ez, corners, count, delta, out):
         my /= ml
         mz /= ml
         # k = d × m, the plane's normal, towards the centroid; then turned by delta: k' =
-        # cos δ k + sin δ m holds the edge delta inside (k' · (x − e) = |x − e| sin δ there)
+        # cos δ k + sin δ m holds the edge inside by the angle δ (k' · (x − e) = r sin δ on
+        # it, r the distance from the eye to the edge's line)
         kx = dy * mz - dz * my
         ky = dz * mx - dx * mz
         kz = dx * my - dy * mx
