@@ -161,6 +161,14 @@ def test_occluders_are_clipped_to_the_widened_pyramid_exactly():
         along = (LIGHT[(a + 1) % 4] - LIGHT[a]) / np.linalg.norm(LIGHT[(a + 1) % 4] - LIGHT[a])
         perp = np.linalg.norm(d - (d @ along)[:, None] * along, axis=1)
         np.testing.assert_allclose(d @ k, perp * math.sin(delta), rtol=1e-12)
+    # an eye just below the middle of the light (2e-3 of its size, where turning a plane
+    # through it by delta would cut the far side off): every plane kept holds the light
+    low = np.array([0.0, 2.0 - 4e-3, 0.0])
+    near = np.zeros((5, 5))
+    clip_planes(*low, LIGHT, 4, delta, near)
+    kept = [a for a in range(4) if np.any(near[a, :3] != 0.0)]
+    assert all(np.all(inside @ near[a, :3] - near[a, 3] > 0.0) for a in kept)
+    assert len(kept) < 4          # the turned planes that would cut the light clip nothing
     # one plane: x >= 1 cuts the triangle (0,0,0) (2,0,0) (0,2,0) to (1,0,0) (2,0,0) (1,1,0)
     one = np.zeros((5, 5))
     one[0, :4] = [1.0, 0.0, 0.0, 1.0]

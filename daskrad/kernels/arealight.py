@@ -190,8 +190,9 @@ def clip_planes(ex, ey, ez, corners, count, delta, out):
     """``out[:count]``: the planes ``(kx, ky, kz, kd)`` (``k · x − kd >= 0`` inside) through
     the eye ``e`` and each edge ``a → a+1`` of the light, turned about the edge's direction by
     the angle ``delta`` away from the light: the pyramid they bound holds every direction
-    within ``delta`` of the light's (:func:`clip_polygon`). A degenerate edge, or the eye in
-    the plane of an edge and the centroid, gives ``k = 0`` (no clip)."""
+    within ``delta`` of the light's (:func:`clip_polygon`). A degenerate edge, the eye in the
+    plane of an edge and the centroid, or a turned plane that would leave a corner of the
+    light outside gives ``k = 0`` (no clip by that plane)."""
     gx = 0.0
     gy = 0.0
     gz = 0.0
@@ -242,6 +243,16 @@ def clip_planes(ex, ey, ez, corners, count, delta, out):
         kx = cd * kx + sd * mx
         ky = cd * ky + sd * my
         kz = cd * kz + sd * mz
+        # Turning the plane moves its half behind the eye inwards: with the eye nearer the
+        # light's plane than ~tan(δ)/4 of its size (above its inside), the far corners would
+        # fall outside. Every corner must stay inside, else this plane clips nothing.
+        inside = True
+        for c in range(count):
+            if not kx * (corners[c, 0] - ex) + ky * (corners[c, 1] - ey) \
+                    + kz * (corners[c, 2] - ez) > 0.0:
+                inside = False
+        if not inside:
+            continue
         out[a, 0] = kx
         out[a, 1] = ky
         out[a, 2] = kz
