@@ -196,7 +196,7 @@ class DaskExecutor:
         have: dict = {}
         futures, groups, fresh = [], [], set()
         position = {p: k for k, p in enumerate(ids.tolist())}
-        taken: dict = {}                   # key of a prefetched future -> its index here
+        taken: set = set()                 # keys of the prefetched futures this batch takes
         for k, p in enumerate(ids.tolist()):
             row = self.rows.get(p)
             a = self.owner.get(p)
@@ -205,7 +205,7 @@ class DaskExecutor:
             elif p in self._ahead:
                 future = self._ahead[p]
                 if future.key not in taken:
-                    taken[future.key] = len(futures)
+                    taken.add(future.key)
                     if future.key not in self._counted_ahead:
                         self._counted_ahead.add(future.key)
                         fresh.add(len(futures))

@@ -60,8 +60,9 @@ WINDOW_MIN = 1e-12
 #: sagitta of the 1° polyline pieces, and a margin relative to the light's size was not
 #: enough for a light seen edge-on), so only the occluder's own edges decide which light
 #: pixels it hides. Measured (8,192 vertices each of RenderPark's office and classroom): the
-#: window method 25 % / 16 % faster, the irradiance summed over the vertices within 2e-5 of
-#: the unclipped one's, the vertices that moved most as close to 4,096 shadow rays as before.
+#: direct pass's CPU 2.52 → 1.97 s / 3.31 → 2.62 s, the irradiance summed over the vertices
+#: within 2e-5 of the unclipped one's, the vertices that moved most as close to 4,096 shadow
+#: rays as before.
 WINDOW_CLIP_ANGLE = 2.0 * 3.141592653589793 / 180.0
 
 #: The reference path tracer's shadow ray to a point of a light stops this fraction of the
