@@ -393,7 +393,7 @@ def test_item_buffer_matches_project_fill_polygon(cases, case, plane_depth):
     verts, elems, points, normals = cases[case]
     for r, edge in ((96, EDGE), (61, 0.3)):  # fine splits, coarse splits, odd R
         won, covered, n_disc, visible = hemisphere_visibility(points, normals, verts, elems, r,
-                                                              edge, plane_depth, HORIZON, False)
+                                                              edge, plane_depth, HORIZON)
         ref = item_buffer_composed(points, normals, verts, elems, r, edge, plane_depth, HORIZON)
         assert n_disc == ref[2]
         assert np.array_equal(covered, ref[1])

@@ -201,19 +201,13 @@ def hemisphere_rows(points, normals, vertices, elem_verts, resolution=DEFAULT_RE
     error model (tests/test_formfactor.py). Conservation: a row is scaled to 1 when it sums to
     more (overlapping elements) and to exactly 1 when every disc pixel is won (a closed view),
     so ``Σ_j F_j <= 1`` always and ``= 1`` in a closed scene (:func:`_conserve`).
-    Options: ``edge_angle`` (degrees, eq. 4), ``depth`` (``"exact"`` or ``"plane"``, eq. 5),
-    ``hiz`` (default False): draw the elements front to back and leave out those wholly hidden
-    behind what is drawn (hierarchical z, :func:`daskrad.kernels.hemisphere._front_to_back`):
-    the same pixels won; an element that would only have won through the bilinear test at its
-    centroid, yet lies wholly behind nearer surfaces, gets 0. It pays where the disc is drawn
-    over many times (:func:`daskrad.formfactor.shooting.depth_complexity`).
+    Options: ``edge_angle`` (degrees, eq. 4), ``depth`` (``"exact"`` or ``"plane"``, eq. 5).
     """
-    _check_options(options, ("edge_angle", "depth", "hiz"))
-    hiz = bool(options.pop("hiz", False))
+    _check_options(options, ("edge_angle", "depth"))
     r, angle, plane = _raster_args(resolution, **options)
     points, normals, vertices, elem_verts = _prepare(points, normals, vertices, elem_verts)
     won, covered, n_disc, visible = hemisphere_visibility(
-        points, normals, vertices, elem_verts, r, angle, plane, tolerances.HORIZON_EPS, hiz)
+        points, normals, vertices, elem_verts, r, angle, plane, tolerances.HORIZON_EPS)
     # Lambert only where the visible fraction can be positive (a pixel won, or the bilinear
     # test, set for every drawn element that does not win all it covers, above 0): hidden
     # and culled elements get F = 0 whatever their size

@@ -141,9 +141,6 @@ def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None =
 
     eps = tolerances.COPLANAR * scene_diagonal(h.vertices)
     gap = tolerances.TWO_SIDED_GAP * scene_diagonal(h.vertices)
-    options = dict(options)
-    if method == "hemisphere" and "hiz" not in options:
-        options["hiz"] = depth_complexity(h) > HIZ_DEPTH
     return ShootContext(
         vertices=h.vertices, elem_verts=h.elem_verts, elem_area=h.elem_area,
         elem_centroid=h.elem_centroid, elem_normal=h.elem_normal, elem_polygon=h.elem_polygon,
@@ -153,32 +150,9 @@ def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None =
         elem_radius=radius(h.elem_verts, h.elem_centroid),
         polygon_sides=np.full(len(h.polygon_material), UNKNOWN, np.int8),
         polygon_two_sided=two_sided_polygons(h, eps, gap), eps=eps, gap=gap,
-        method=method, resolution=resolution, options=options,
+        method=method, resolution=resolution, options=dict(options),
         grid=grid, tri_element=np.asarray(tri_element),
     )
-
-
-#: The hemisphere method draws front to back with hierarchical z (option ``hiz``) when the
-#: item buffer is drawn over more than this many times on average (:func:`depth_complexity`).
-#: Measured on the same shooters' passes (kernel time, hiz against not): the Cornell box (depth
-#: complexity 1.03) 0.83-0.89x, RenderPark's graz office (8.1) 1.38-1.55x.
-HIZ_DEPTH = 2.0
-
-#: Shooters probed by :func:`depth_complexity`, and the item buffer's side there.
-PROBES = 8
-PROBE_RESOLUTION = 64
-
-
-def depth_complexity(h: Hierarchy) -> float:
-    """How many times the hemisphere base is drawn over, on average, seen from ``PROBES``
-    patch centroids spread through the patch indices: the disc pixels every element facing
-    the point covers, summed, over the disc's pixels (1 in a convex room). A pure function of
-    the geometry, so every process decides the same."""
-    picks = np.unique(np.linspace(0, len(h.patch_area) - 1, PROBES).astype(np.int64))
-    _, covered, n_disc = formfactor.hemisphere_counts(
-        h.patch_centroid[picks], h.patch_normal[picks], h.vertices, h.elem_verts,
-        PROBE_RESOLUTION)
-    return float(covered.sum() / (n_disc * len(picks)))
 
 
 def shooter_points(ctx: ShootContext, p: int) -> tuple[np.ndarray, np.ndarray]:

@@ -12,8 +12,3 @@ jit = njit(nogil=True, cache=True)
 
 jit_parallel = njit(nogil=True, cache=True, parallel=True)
 """Decorator for kernels that use ``numba.prange``; only for in-process hot loops."""
-
-jit_inline = njit(nogil=True, cache=True, inline="always")
-"""Decorator for small helpers of a hot loop: inlined into the caller at numba's level (a call
-passing arrays costs more than a short test; ``jit`` leaves inlining to LLVM, which keeps
-calls with many array arguments)."""

@@ -67,18 +67,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit, jit_inline
+from daskrad.kernels._jit import jit
 from daskrad.kernels.geometry import element_planes, lex_less, orthonormal_basis, scene_diagonal
 from daskrad.kernels.tolerances import DEPTH_TIE
-
-#: Hierarchical z: tiles of ``2**HIZ_SHIFT`` pixels a side keep the farthest surface drawn in
-#: them, so an element behind it everywhere is not rasterized (:func:`_front_to_back`).
-HIZ_SHIFT = 3
-#: Distance bins (over the scene's diagonal) of the front-to-back order.
-HIZ_BINS = 256
-#: Consecutive elements (the hierarchy's elements of a patch are consecutive) tested as one
-#: ball before any of them is projected.
-HIZ_GROUP = 16
 
 
 @jit
@@ -444,19 +435,10 @@ def local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz):
 def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
            resolution, centre, dz, cos_thr, tab, plane_depth,
            lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, won, covered, visible, gx, gy, gz,
-           drawn, cull, ecx, ecy, ecz, erad, gcx, gcy, gcz, grad, kscale, order, cbin, bins, tmin,
-           dirty, filled, ndisc):
+           drawn):
     """One shot: fill ``won (E,)``, ``covered (E,)`` (int32) and ``visible (E,)`` (float64,
     the bilinear visible fraction at the centroid's direction of every element drawn), all
-    zeroed by the caller; ``gx, gy, gz (E,) float64`` and ``drawn (E,) int32`` are scratch.
-
-    ``cull``: draw front to back, leaving out groups and elements wholly hidden behind what
-    is drawn (:func:`_front_to_back`, :func:`_hidden`): ``ecx, ecy, ecz, erad (E,)`` the
-    elements' centroids and radii, ``gcx, gcy, gcz, grad (G,)`` the groups' balls, ``kscale``
-    distance bins per length, ``ndisc (T²,)`` the disc pixels of each tile; ``order, cbin
-    (G,) int32``, ``bins (HIZ_BINS + 1,) int64``, ``tmin (T²,) float64``, ``dirty (T²,)
-    bool`` and ``filled (T²,) int32`` scratch. Else every element in index order, ``covered``
-    counted for all of them."""
+    zeroed by the caller; ``gx, gy, gz (E,) float64`` and ``drawn (E,) int32`` are scratch."""
     r = resolution
     half_r = 0.5 * r
     t1x, t1y, t1z, t2x, t2y, t2z = local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz)
@@ -467,55 +449,11 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
     rq = np.empty(5)
     n_elem = elem_verts.shape[0]
     n_small = 0
-    nt = ((r - 1) >> HIZ_SHIFT) + 1
-    n_groups = gcx.shape[0]
-    if cull:
-        _front_to_back(sx, sy, sz, gcx, gcy, gcz, kscale, order, cbin, bins)
-        for t in range(nt * nt):
-            # nothing drawn: nothing hidden, except in a tile without disc pixels
-            tmin[t] = np.inf if ndisc[t] == 0 else -np.inf
-            dirty[t] = False
-            filled[t] = 0
     # The per-element path below is written out in one loop (the steps of project_element,
     # depth_coefficients and fill_polygon, same arithmetic in the same order; only the depth
     # test adds the DEPTH_TIE margin): a call passing a dozen arrays costs more than the work
     # for a typical element (measured: 130-200 ns per call, Table 2 118 -> 36 ms).
-    bound = np.inf
-    ti0 = ti1 = tj0 = tj1 = 0
-    gi = 0
-    e_next = 0
-    e_end = 0 if cull else n_elem
-    while True:
-        if cull and e_next == e_end:
-            # the next group of HIZ_GROUP consecutive elements, nearest first; a group
-            # wholly hidden behind what is drawn is skipped before any of its elements is
-            # looked at: its elements lie in the ball (gc, grad), whose directions lie
-            # within the cap of half-angle asin(grad / dist) about gc's, whose disc image
-            # lies within the chord 2 sin(half-angle / 2) of gc's image
-            if gi == n_groups:
-                break
-            g = order[gi]
-            gi += 1
-            e_next = g * HIZ_GROUP
-            e_end = min(e_next + HIZ_GROUP, n_elem)
-            dx = gcx[g] - sx
-            dy = gcy[g] - sy
-            dz_ = gcz[g] - sz
-            dist = np.sqrt(dx * dx + dy * dy + dz_ * dz_)
-            if grad[g] < dist:
-                ux = (dx * t1x + dy * t1y + dz_ * t1z) / dist
-                uy = (dx * t2x + dy * t2y + dz_ * t2z) / dist
-                q = grad[g] / dist
-                chord = np.sqrt(2.0 - 2.0 * np.sqrt(1.0 - q * q)) * (1.0 + 1e-9) + 1e-12
-                gbound = (1.0 / (dist - grad[g])) / (1.0 - DEPTH_TIE)
-                if _hidden(ux - chord, ux + chord, uy - chord, uy + chord, gbound, r, tmin,
-                           dirty, filled, ndisc, zbuf, dz)[0]:
-                    e_next = e_end
-                    continue
-        if e_next == e_end:
-            break
-        e = e_next
-        e_next += 1
+    for e in range(n_elem):
         # --- cull (step 2): back-facing, wholly at or below the horizon -----------------
         c = eoff[e] - (enrm[e, 0] * sx + enrm[e, 1] * sy + enrm[e, 2] * sz)
         if not c < 0.0:
@@ -598,23 +536,6 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
         for a in range(mm):
             ymin = min(ymin, ys[a])
             ymax = max(ymax, ys[a])
-        if cull:
-            # a lower bound of the distance from s to any point of e: to its plane, and to
-            # its centroid less its radius (e lies in that ball)
-            dx = ecx[e] - sx
-            dy = ecy[e] - sy
-            dz_ = ecz[e] - sz
-            dlb = max(np.sqrt(dx * dx + dy * dy + dz_ * dz_) - erad[e], -c)
-            bound = (1.0 / dlb) / (1.0 - DEPTH_TIE) if dlb > 0.0 else np.inf
-            xmin = np.inf
-            xmax = -np.inf
-            for a in range(mm):
-                xmin = min(xmin, xs[a])
-                xmax = max(xmax, xs[a])
-            hidden, ti0, ti1, tj0, tj1 = _hidden(xmin, xmax, ymin, ymax, bound, r, tmin,
-                                                 dirty, filled, ndisc, zbuf, dz)
-            if hidden:
-                continue
         j0 = max(int(np.ceil((ymin + 1.0) * half_r - 0.5)) - 1, 0)
         j1 = min(int(np.floor((ymax + 1.0) * half_r - 0.5)) + 1, r - 1)
         if j0 <= j1:
@@ -666,21 +587,12 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
                         zo = zbuf[idx]
                         # nearer by more than round-off: coplanar elements (neighbours on
                         # one wall overlapping by a polyline's width along a T-junction)
-                        # tie, and a tie goes to the lower element index whatever the units
-                        # and the order of drawing, instead of to whichever round-off favours
-                        # (drawn in index order, a tie stays with the element drawn first)
-                        tie = DEPTH_TIE * abs(zo)
-                        if (zo == -np.inf or near - zo > tie
-                                or (e < item[idx] and near - zo >= -tie)):
-                            if cull and zo == -np.inf:
-                                filled[((j >> HIZ_SHIFT) * nt) + (i >> HIZ_SHIFT)] += 1
+                        # tie, and a tie stays with the element drawn first whatever the
+                        # units, instead of going to whichever round-off favours
+                        if near > zo and (zo == -np.inf or near - zo > DEPTH_TIE * abs(zo)):
                             zbuf[idx] = near
                             item[idx] = e
         covered[e] = cov
-        if cull and cov > 0:
-            for tj in range(tj0, tj1 + 1):
-                for ti in range(ti0, ti1 + 1):
-                    dirty[tj * nt + ti] = True
         # Remember the direction of the (clipped) centroid for the visibility test below,
         # once the buffer is complete: every element drawn gets it, not only those covering
         # no pixel centre, since an element thinner than the outline's chord error (a
@@ -767,82 +679,6 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
 
 
 @jit
-def _front_to_back(sx, sy, sz, gcx, gcy, gcz, kscale, order, cbin, bins):
-    """The element groups (``HIZ_GROUP`` consecutive elements, ``gc (G,)`` their centres)
-    nearest the shooter ``s`` first: their indices in ``order[:G]``.
-
-    By bins of ``1 / kscale`` in the L1 distance from ``s`` to a group's centre (between 1
-    and √3 times the distance: an order without a square root per group), by index within a
-    bin: a counting sort, O(G), deterministic (``cbin (G,) int32`` and ``bins
-    (HIZ_BINS + 1,) int64`` scratch). Drawn in this order, the near surfaces (the walls of the
-    room around the shooter) fill the item buffer first and the groups they hide (the rooms
-    behind, the scene beneath a floor) fail the hierarchical-z test of :func:`_shoot` before
-    any of their elements is projected: in a furnished office of 56,000 elements
-    (RenderPark's graz) 95 % of the elements drawn from a shooter were wholly hidden, at a
-    depth complexity of 8.
-    """
-    n_bins = bins.shape[0] - 1
-    for b in range(n_bins + 1):
-        bins[b] = 0
-    n = gcx.shape[0]
-    for g in range(n):
-        d = abs(gcx[g] - sx) + abs(gcy[g] - sy) + abs(gcz[g] - sz)
-        b = min(int(d * kscale), n_bins - 1)
-        cbin[g] = b
-        bins[b + 1] += 1
-    for b in range(n_bins):
-        bins[b + 1] += bins[b]
-    for g in range(n):
-        b = cbin[g]
-        order[bins[b]] = g
-        bins[b] += 1
-
-
-@jit_inline
-def _hidden(xmin, xmax, ymin, ymax, bound, r, tmin, dirty, filled, ndisc, zbuf, dz):
-    """Hierarchical-z test of a region of the disc, the box ``[xmin, xmax] × [ymin, ymax]``
-    widened by a pixel (the bilinear visibility test reads the 2 x 2 centres around a
-    direction inside it): ``(hidden, ti0, ti1, tj0, tj1)``, the tiles of the box and whether
-    every disc pixel there holds a surface nearer than ``bound`` by more than the tie margin
-    (an element no nearer than ``bound`` anywhere would win none of them, whatever the order
-    of drawing). ``tmin`` (the tiles' farthest nearness) only grows as surfaces are drawn, so
-    a stale value is a lower bound: a tile is scanned again only when it alone would keep the
-    element drawn, and only once every disc pixel of it (``filled == ndisc``) holds a surface.
-    """
-    half_r = 0.5 * r
-    nt = ((r - 1) >> HIZ_SHIFT) + 1
-    ti0 = max(int(np.floor((xmin + 1.0) * half_r - 0.5)) - 1, 0) >> HIZ_SHIFT
-    ti1 = min(int(np.ceil((xmax + 1.0) * half_r - 0.5)) + 1, r - 1) >> HIZ_SHIFT
-    tj0 = max(int(np.floor((ymin + 1.0) * half_r - 0.5)) - 1, 0) >> HIZ_SHIFT
-    tj1 = min(int(np.ceil((ymax + 1.0) * half_r - 0.5)) + 1, r - 1) >> HIZ_SHIFT
-    if not bound < np.inf:
-        return False, ti0, ti1, tj0, tj1
-    for tj in range(tj0, tj1 + 1):
-        for ti in range(ti0, ti1 + 1):
-            t = tj * nt + ti
-            if not bound < tmin[t] and dirty[t] and filled[t] == ndisc[t]:
-                tmin[t] = _tile_min(tj, ti, r, zbuf, dz)
-                dirty[t] = False
-            if not bound < tmin[t]:
-                return False, ti0, ti1, tj0, tj1
-    return True, ti0, ti1, tj0, tj1
-
-
-@jit
-def _tile_min(tj, ti, r, zbuf, dz):
-    """Nearness of the farthest surface in tile ``(tj, ti)``: the smallest ``zbuf`` over its
-    disc pixels (``-inf`` when one is empty, ``inf`` when the tile has none)."""
-    m = np.inf
-    for j in range(tj << HIZ_SHIFT, min((tj + 1) << HIZ_SHIFT, r)):
-        for i in range(ti << HIZ_SHIFT, min((ti + 1) << HIZ_SHIFT, r)):
-            idx = j * r + i
-            if dz[idx] < 0.0:
-                continue
-            m = min(m, zbuf[idx])
-    return m
-
-
-@jit
 def _nearness(e, dx, dy, dz_, sx, sy, sz, enrm, eoff, t1x, t1y, t1z, t2x, t2y, t2z,
               snx, sny, snz):
     """``1/t`` along the local unit direction ``d`` to the plane of element ``e`` (<= 0 when
@@ -867,14 +703,8 @@ def edge_capacity(edge_angle):
 
 @jit
 def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edge_angle,
-                          plane_depth, horizon_eps, cull):
+                          plane_depth, horizon_eps):
     """:func:`hemisphere_shots` plus ``visible : (S, E) float64`` in ``[0, 1]``.
-
-    ``cull``: draw the elements front to back and leave out the raster of those wholly hidden
-    behind what is already drawn (hierarchical z, :func:`_front_to_back`). ``won`` is the same
-    (a depth tie goes to the lower index in either order); a hidden element is not drawn, so
-    its ``covered`` and ``visible`` are 0 (its factor is 0 either way). Only with exact depth
-    (``plane_depth`` False: the bound is a distance), else ignored.
 
     ``visible[s, e]`` is set for every element that faces the point and reaches above the
     horizon (0 for the culled ones): the fraction of the 2 x 2 pixels around the direction of
@@ -914,66 +744,12 @@ def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edg
     visible = np.zeros((n_shot, n_elem))
     cos_thr = np.cos(edge_angle)
     tab = split_table(edge_angle)
-    cull = cull and not plane_depth
-    ecx = np.zeros(n_elem)
-    ecy = np.zeros(n_elem)
-    ecz = np.zeros(n_elem)
-    erad = np.zeros(n_elem)
-    if cull:
-        for e in range(n_elem):
-            k = 4 if elem_verts[e, 3] >= 0 else 3
-            for a in range(k):
-                vi = elem_verts[e, a]
-                ecx[e] += vertices[vi, 0] / k
-                ecy[e] += vertices[vi, 1] / k
-                ecz[e] += vertices[vi, 2] / k
-            for a in range(k):
-                vi = elem_verts[e, a]
-                dx = vertices[vi, 0] - ecx[e]
-                dy = vertices[vi, 1] - ecy[e]
-                dz_ = vertices[vi, 2] - ecz[e]
-                erad[e] = max(erad[e], np.sqrt(dx * dx + dy * dy + dz_ * dz_))
-            # the bound only needs a ball holding the element: widen it by round-off
-            erad[e] *= 1.0 + 1e-12
-    n_groups = (n_elem + HIZ_GROUP - 1) // HIZ_GROUP
-    gcx = np.zeros(n_groups)
-    gcy = np.zeros(n_groups)
-    gcz = np.zeros(n_groups)
-    grad = np.zeros(n_groups)
-    if cull:
-        for g in range(n_groups):
-            e0 = g * HIZ_GROUP
-            e1 = min(e0 + HIZ_GROUP, n_elem)
-            for e in range(e0, e1):
-                gcx[g] += ecx[e] / (e1 - e0)
-                gcy[g] += ecy[e] / (e1 - e0)
-                gcz[g] += ecz[e] / (e1 - e0)
-            for e in range(e0, e1):
-                dx = ecx[e] - gcx[g]
-                dy = ecy[e] - gcy[g]
-                dz_ = ecz[e] - gcz[g]
-                grad[g] = max(grad[g], np.sqrt(dx * dx + dy * dy + dz_ * dz_) + erad[e])
-            grad[g] *= 1.0 + 1e-12
-    kscale = HIZ_BINS / max(np.sqrt(3.0) * scene_diagonal(vertices), 1e-300)
-    order = np.empty(n_groups, dtype=np.int32)
-    cbin = np.empty(n_groups, dtype=np.int32)
-    bins = np.empty(HIZ_BINS + 1, dtype=np.int64)
-    nt = ((r - 1) >> HIZ_SHIFT) + 1
-    tmin = np.empty(nt * nt)
-    dirty = np.zeros(nt * nt, dtype=np.bool_)
-    filled = np.zeros(nt * nt, dtype=np.int32)
-    ndisc = np.zeros(nt * nt, dtype=np.int32)
-    for j in range(r):
-        for i in range(r):
-            if dz[j * r + i] >= 0.0:
-                ndisc[(j >> HIZ_SHIFT) * nt + (i >> HIZ_SHIFT)] += 1
     for s in range(n_shot):
         _shoot(points[s, 0], points[s, 1], points[s, 2],
                normals[s, 0], normals[s, 1], normals[s, 2],
                vertices, elem_verts, enrm, eoff, hz, r, centre, dz, cos_thr, tab,
                plane_depth, lx, ly, lz, item, zbuf, xs, ys, xcross, cnt, won[s], covered[s],
-               visible[s], gx, gy, gz, drawn, cull, ecx, ecy, ecz, erad, gcx, gcy, gcz, grad,
-               kscale, order, cbin, bins, tmin, dirty, filled, ndisc)
+               visible[s], gx, gy, gz, drawn)
     return won, covered, n_disc, visible
 
 
@@ -1014,5 +790,5 @@ def hemisphere_shots(points, normals, vertices, elem_verts, resolution, edge_ang
     """
     won, covered, n_disc, _ = hemisphere_visibility(points, normals, vertices, elem_verts,
                                                     resolution, edge_angle, plane_depth,
-                                                    horizon_eps, False)
+                                                    horizon_eps)
     return won, covered, n_disc
