@@ -53,7 +53,10 @@ def run_command(args) -> None:
 
         settings.validate()
         Outputs.of(output)
+        from daskrad.distributed import check_scheduler
         from daskrad.preprocess import check_size
+
+        check_scheduler(settings)
 
         check_size(load_scene(args.scene, args.config, args.camera), settings)
         warmup.announce()

@@ -22,7 +22,7 @@ from typing import NamedTuple
 import numpy as np
 
 from daskrad import direct, output, render, solve
-from daskrad.distributed import auto_workers, executor_for
+from daskrad.distributed import auto_workers, check_scheduler, executor_for
 from daskrad.distributed.monitor import Preview, Watch
 from daskrad.distributed.store import Store
 from daskrad.mesh import Hierarchy
@@ -42,6 +42,7 @@ def run(scene_path: str | Path, out: str | Path, settings: Settings, progress: b
     Returns the run report (also written as JSON)."""
     outputs = output.Outputs.of(out, resume)
     settings.validate()
+    check_scheduler(settings)
     with outputs.lock():
         return _run(scene_path, outputs, settings, progress, config, resume, executor, camera)
 

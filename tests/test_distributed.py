@@ -191,6 +191,26 @@ def _wait_for(predicate, timeout: float, what: str):
     raise AssertionError(f"timed out waiting for {what}")
 
 
+def test_a_scheduler_nothing_listens_on_is_refused_before_any_work(tmp_path):
+    # Dask's connect retries a refused address for connect_timeout (30 s), after the scene is
+    # loaded and meshed (and the kernels compiled on a first run); a plain socket says at once
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"      # closed: nothing listens there now
+    out = tmp_path / "out" / "x.exr"
+    out.parent.mkdir()
+    r = subprocess.run([sys.executable, "-m", "daskrad", "run", str(CORNELL), "-o", str(out),
+                        "-q", "--scheduler", address], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 2
+    assert r.stderr.strip() == (f"daskrad: error: cannot reach the Dask scheduler {address}: "
+                                "connection refused")
+    assert list(out.parent.iterdir()) == []   # not even the lock file
+
+
 def test_loopback_cluster_script_and_scheduler_option(reference, tmp_path):
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}"
            f"{os.environ.get('PATH', '')}"}

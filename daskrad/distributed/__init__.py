@@ -24,6 +24,37 @@ def connect(settings, store=None):
     return start_local(settings, store)
 
 
+#: Seconds :func:`check_scheduler` waits for a TCP connection before leaving the question to
+#: Dask's own connect (which waits ``connect_timeout``).
+PROBE_SECONDS = 5.0
+
+
+def check_scheduler(settings) -> None:
+    """Refuse a ``--scheduler`` nothing listens on, at once and before any work: a refused
+    connection or an unknown host raises :class:`~daskrad.errors.OptionError` (Dask's connect
+    would retry it for ``connect_timeout`` seconds, after the scene was loaded and meshed).
+    A host that does not answer within :data:`PROBE_SECONDS` is left to Dask. Only ``tcp://``
+    addresses are probed; a plain socket, no dask import."""
+    address = settings.scheduler
+    if not address or not address.startswith("tcp://"):
+        return
+    import socket
+
+    from daskrad.errors import OptionError
+
+    host, _, port = address[len("tcp://"):].rpartition(":")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)),
+                                      timeout=min(PROBE_SECONDS, settings.connect_timeout)):
+            return
+    except TimeoutError:
+        return
+    except OSError as err:
+        reason = err.strerror or type(err).__name__
+        raise OptionError(f"cannot reach the Dask scheduler {address}: {reason.lower()}") \
+            from None
+
+
 def auto_workers(scene, settings) -> int:
     """``--workers`` not given: 0, in-process on a thread per core (docs/design.md §4).
 
