@@ -135,9 +135,7 @@ class DaskExecutor:
         self.dashboard_link = _dashboard(client, dashboard_host)
         self.stats = {"wait": 0.0, "tasks": 0, "ahead": 0}
         self.geometry = None               # (generation, token) of the current geometry
-        self._ahead: dict = {}             # patch id -> the future of its row, prefetched
-        self._ahead_ids: dict = {}         # a prefetched future's key -> its patch ids
-        self._counted_ahead: set = set()   # keys of prefetched futures a batch has timed
+        self._forget_prefetched()
         self._probed = False
         self._phase = (None, -float("inf"))
         # the dashboard page shows a phase from the first second: the mesh is built next
@@ -163,11 +161,16 @@ class DaskExecutor:
         # the same objects, kept and counted once within one budget for the process
         self.rows = (worker.row_cache(self.store.path, generation, token, shoot_ctx, budget)
                      if self.shared else shooting.RowCache(budget))
-        self._ahead = {}                   # patch id -> the future of its row, prefetched
-        self._ahead_ids = {}               # a prefetched future's key -> its patch ids
-        self._counted_ahead = set()        # keys of prefetched futures a batch has timed
+        self._forget_prefetched()
         self.row_seconds = None
         self.phase("shooting", 0.0, force=True)
+
+    def _forget_prefetched(self) -> None:
+        """No rows computed ahead (a new executor, or a new geometry: the old rows are of
+        another mesh)."""
+        self._ahead: dict = {}             # patch id -> the future of its row, prefetched
+        self._ahead_ids: dict = {}         # a prefetched future's key -> its patch ids
+        self._counted_ahead: set = set()   # keys of prefetched futures a batch has timed
 
     def shots(self, batch_no: int, patch_ids: np.ndarray) -> _Batch:
         """Batch ``batch_no``: the rows the client keeps, tasks of new rows, and one per
