@@ -22,7 +22,7 @@ from typing import NamedTuple
 import numpy as np
 
 from daskrad import direct, output, render, solve
-from daskrad.distributed import auto_workers, check_scheduler, executor_for
+from daskrad.distributed import auto_workers, check_scheduler, executor_for, start_early
 from daskrad.distributed.monitor import Preview, Watch
 from daskrad.distributed.store import Store
 from daskrad.mesh import Hierarchy
@@ -50,14 +50,20 @@ def run(scene_path: str | Path, out: str | Path, settings: Settings, progress: b
 def _run(scene_path, outputs, settings, progress, config, resume, executor, camera) -> dict:
     seconds: dict[str, float] = {}
     t = start = time.perf_counter()
-    scene = load_scene(scene_path, config, camera)                                 # 1
-    if settings.workers is None:
-        settings = settings.replace(workers=auto_workers(scene, settings))
-    mesh = preprocess(scene, settings)                                            # 1
-    seconds["preprocess"], t = time.perf_counter() - t, time.perf_counter()
-    replaced = outputs.earlier()
-    store = Store(outputs.working_store(resume), settings, resume=resume, scene=scene)
-    ex = executor or executor_for(settings, store)
+    early = start_early(settings) if executor is None else None   # starts as the scene loads
+    try:
+        scene = load_scene(scene_path, config, camera)                             # 1
+        if settings.workers is None:
+            settings = settings.replace(workers=auto_workers(scene, settings))
+        mesh = preprocess(scene, settings)                                        # 1
+        seconds["preprocess"], t = time.perf_counter() - t, time.perf_counter()
+        replaced = outputs.earlier()
+        store = Store(outputs.working_store(resume), settings, resume=resume, scene=scene)
+    except BaseException:
+        if early is not None:
+            early.close()
+        raise
+    ex = executor or (early.get() if early is not None else executor_for(settings, store))
     ex.use_store(store)
     bar = None
     try:

@@ -364,3 +364,28 @@ def test_rows_prefetched_on_idle_workers_leave_the_solution_unchanged(cluster_cl
     assert remote.iteration == local.iteration > 2 * settings.batch
     np.testing.assert_array_equal(remote.radiosity, local.radiosity)
     np.testing.assert_array_equal(remote.unshot, local.unshot)
+
+
+def test_a_cluster_started_while_the_scene_loads_is_closed_when_the_scene_is_bad(tmp_path):
+    # --workers N starts its LocalCluster of threads beside the loading and meshing; a scene
+    # that fails to load must not leave it running (its event loop, its workers, the port of
+    # its dashboard), and the error is the loader's own
+    import threading
+
+    from daskrad.errors import SceneError
+
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v 0 0 0\nv 1 0 0\nf 1 2 7\n")
+    before = {t.ident for t in threading.enumerate()}
+    with pytest.raises(SceneError, match="bad.obj"):
+        run(bad, tmp_path / "o.exr", CASES["cornell"].replace(workers=2,
+                                                              dashboard="127.0.0.1:0"),
+            progress=False)
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        left = [t.name for t in threading.enumerate() if t.ident not in before and t.is_alive()]
+        if not left:
+            break
+        time.sleep(0.1)
+    assert left == []
+    assert not (tmp_path / "o.exr").exists()

@@ -66,6 +66,43 @@ def auto_workers(scene, settings) -> int:
     return 0
 
 
+class Early:
+    """A LocalCluster of threads started on a thread of its own (:func:`start_early`), so that
+    its start (~0.5 s: the scheduler, the workers, their event loop) overlaps the loading and
+    meshing of the scene, which use one core. :meth:`get` waits for it; :meth:`close` closes
+    it when the run ends before taking it (a bad scene, Ctrl-C)."""
+
+    def __init__(self, settings):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="daskrad-cluster")
+        self._future = self._pool.submit(connect, settings, None)
+        self._pool.shutdown(wait=False)     # the one task runs on; the thread ends with it
+
+    def get(self):
+        """The executor (:func:`connect`'s); its errors are raised here."""
+        return self._future.result()
+
+    def close(self) -> None:
+        """Close the cluster once it has started (an error while starting is dropped: the
+        run is ending on an error of its own)."""
+        try:
+            ex = self._future.result()
+        except BaseException:  # noqa: BLE001 - the run's own error is the one to report
+            return
+        ex.close()
+
+
+def start_early(settings) -> Early | None:
+    """Start ``--workers N``'s LocalCluster of threads now, in the background (:class:`Early`),
+    or None: in-process runs need none, ``--scheduler`` is connected to once the scene is
+    known good, and worker processes start from the main thread (they must inherit its
+    ignored SIGINT, :func:`daskrad.distributed.dask_executor.start_local`)."""
+    if settings.workers and settings.scheduler is None and not settings.processes:
+        return Early(settings)
+    return None
+
+
 def executor_for(settings, store=None):
     """Where the tasks of a run with ``settings`` run: this process (``workers`` 0 and no
     scheduler) or a Dask cluster (:func:`connect`)."""
