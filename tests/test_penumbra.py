@@ -70,6 +70,26 @@ def test_the_fin_is_an_occluder_for_the_floor_beside_it_and_not_for_the_far_ceil
     assert len(shooting.shooter_points(ctx, corner[0])[0]) == 1
 
 
+def test_a_search_within_a_reach_finds_the_nearest_blocker_when_it_lies_within():
+    # the solver only asks whether a blocker lies within PENUMBRA radii, and passes that
+    # reach so far elements are dismissed on their distance: the answer must be the full
+    # search's distance when it is within the reach, and inf when it is not
+    h, ctx = _context(sc.degenerate_scenes()["non-manifold edge (fin)"])
+    full = np.array([shooting.occluder_distance(ctx, p) for p in range(h.n_patches)])
+    assert np.isfinite(full).any() and np.isinf(full).any()
+    cut = 0
+    for radii in (0.5, 1.0, shooting.PENUMBRA, 16.0):
+        reach = radii * ctx.patch_radius
+        near = np.array([shooting.occluder_distance(ctx, p, reach[p])
+                         for p in range(h.n_patches)])
+        within = full < reach
+        assert within.any()
+        np.testing.assert_array_equal(near[within], full[within])
+        assert np.isinf(near[~within]).all()
+        cut += int((~within & np.isfinite(full)).sum())     # blockers beyond the reach
+    assert cut > 0
+
+
 def _floor_and(*quads):
     """A unit floor quad (facing +z) and two-sided quads with the given corners."""
     from daskrad.scene.validate import scene_from_arrays

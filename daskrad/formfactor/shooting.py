@@ -162,7 +162,8 @@ def shooter_points(ctx: ShootContext, p: int) -> tuple[np.ndarray, np.ndarray]:
     :data:`SHOOTER_POINTS` in each of the patch's triangles, weighted by the triangle's area
     (Σ = 1, mean = centroid), less the points inside a closed object (:func:`_enclosed`).
     """
-    if not occluder_distance(ctx, p) < PENUMBRA * ctx.patch_radius[p]:
+    reach = PENUMBRA * ctx.patch_radius[p]
+    if not occluder_distance(ctx, p, reach) < reach:
         return ctx.patch_centroid[p][None], np.ones(1)
     corners = real_corners(ctx.patch_verts[p])
     bary = SHOOTER_POINTS
@@ -177,15 +178,15 @@ def shooter_points(ctx: ShootContext, p: int) -> tuple[np.ndarray, np.ndarray]:
     return points, weights
 
 
-def occluder_distance(ctx: ShootContext, p: int) -> float:
+def occluder_distance(ctx: ShootContext, p: int, reach: float = np.inf) -> float:
     """Distance from patch ``p``'s centroid to its nearest possible occluder, less that
-    element's radius; ``inf`` when nothing can occlude it
+    element's radius; ``inf`` when nothing can occlude it within ``reach``
     (:func:`daskrad.kernels.blockers.nearest_blocker`)."""
     return nearest_blocker(ctx.vertices[real_corners(ctx.patch_verts[p])], ctx.patch_centroid[p],
                            ctx.patch_normal[p], ctx.patch_polygon[p], ctx.vertices,
                            ctx.elem_verts, ctx.elem_centroid, ctx.elem_normal, ctx.elem_radius,
                            ctx.elem_polygon, ctx.polygon_sides, ctx.eps, GRAZING,
-                           max(ctx.eps, 2.0 * ctx.gap))
+                           max(ctx.eps, 2.0 * ctx.gap), float(reach))
 
 
 def _probes() -> np.ndarray:
