@@ -59,11 +59,11 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         seconds["preprocess"], t = time.perf_counter() - t, time.perf_counter()
         replaced = outputs.earlier()
         store = Store(outputs.working_store(resume), settings, resume=resume, scene=scene)
+        ex = executor or (early.get() if early is not None else executor_for(settings, store))
     except BaseException:
-        if early is not None:
+        if early is not None:       # a bad scene, or Ctrl-C while the cluster starts
             early.close()
         raise
-    ex = executor or (early.get() if early is not None else executor_for(settings, store))
     ex.use_store(store)
     bar = None
     try:

@@ -366,21 +366,32 @@ def test_rows_prefetched_on_idle_workers_leave_the_solution_unchanged(cluster_cl
     np.testing.assert_array_equal(remote.unshot, local.unshot)
 
 
-def test_a_cluster_started_while_the_scene_loads_is_closed_when_the_scene_is_bad(tmp_path):
+def test_a_cluster_started_while_the_scene_loads_is_closed_when_the_scene_is_bad(
+        tmp_path, monkeypatch):
     # --workers N starts its LocalCluster of threads beside the loading and meshing; a scene
     # that fails to load must not leave it running (its event loop, its workers, the port of
     # its dashboard), and the error is the loader's own
     import threading
 
+    import daskrad.run
     from daskrad.errors import SceneError
 
     bad = tmp_path / "bad.obj"
     bad.write_text("v 0 0 0\nv 1 0 0\nf 1 2 7\n")
     before = {t.ident for t in threading.enumerate()}
+    seen: list[str] = []
+
+    def load(*args, **kwargs):
+        time.sleep(1.0)                     # a scene that takes a while: the cluster starts
+        seen.extend(t.name for t in threading.enumerate() if t.ident not in before)
+        return load_scene(*args, **kwargs)
+
+    monkeypatch.setattr(daskrad.run, "load_scene", load)
     with pytest.raises(SceneError, match="bad.obj"):
         run(bad, tmp_path / "o.exr", CASES["cornell"].replace(workers=2,
                                                               dashboard="127.0.0.1:0"),
             progress=False)
+    assert seen, "no cluster was started while the scene loaded"
     deadline = time.monotonic() + 10
     while time.monotonic() < deadline:
         left = [t.name for t in threading.enumerate() if t.ident not in before and t.is_alive()]
@@ -389,3 +400,20 @@ def test_a_cluster_started_while_the_scene_loads_is_closed_when_the_scene_is_bad
         time.sleep(0.1)
     assert left == []
     assert not (tmp_path / "o.exr").exists()
+
+
+def test_only_a_local_cluster_of_threads_starts_beside_the_loading():
+    # worker processes must start from the main thread (they inherit its ignored SIGINT) and
+    # a --scheduler is connected to once the scene is known good
+    from daskrad.distributed import start_early
+
+    base = CASES["cornell"]
+    for settings in (base.replace(workers=0), base.replace(workers=None),
+                     base.replace(workers=2, processes=True),
+                     base.replace(workers=2, scheduler="tcp://127.0.0.1:1")):
+        assert start_early(settings) is None
+    early = start_early(base.replace(workers=1, dashboard="127.0.0.1:0"))
+    try:
+        assert early.get().workers == 1
+    finally:
+        early.close()

@@ -84,13 +84,17 @@ class Early:
         return self._future.result()
 
     def close(self) -> None:
-        """Close the cluster once it has started (an error while starting is dropped: the
-        run is ending on an error of its own)."""
+        """Close the cluster once it has started. The run is ending on an error of its own,
+        the one to report: a cluster that failed to start, or fails to close, adds none (a
+        Ctrl-C while waiting for it still interrupts)."""
         try:
             ex = self._future.result()
-        except BaseException:  # noqa: BLE001 - the run's own error is the one to report
+        except Exception:  # noqa: BLE001 - it did not start: nothing to close
             return
-        ex.close()
+        try:
+            ex.close()
+        except Exception:  # noqa: BLE001, S110 - see above
+            pass
 
 
 def start_early(settings) -> Early | None:
