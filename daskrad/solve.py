@@ -161,12 +161,13 @@ def apply_shot(h: Hierarchy, reflectance: np.ndarray, sol: Solution, shooter: in
 
 
 #: Batches' worth of patches beyond those in flight whose rows :func:`solve` offers for
-#: prefetching, unless the executor asks for another horizon (``prefetch_batches``): near the
-#: top of the ranking most will shoot within a few batches. In this process 2 is enough (a
-#: thread that finishes finds the next offer at once); 8 made RenderPark's graz solve 3 %
-#: slower here (29.8 / 29.5 → 30.8 / 30.5 s, 2,000 shots: rows computed ahead for patches that
-#: did not shoot). A Dask executor looks further (its figures there).
-PREFETCH = 2
+#: prefetching: near the top of the ranking most will shoot within a few batches. On 2 Dask
+#: workers a short horizon ran dry between batches (a worker waits ~3–7 ms for the client's
+#: next offer); solves, 2 thread workers, PREFETCH 2 → 8 (with two tasks ahead per worker,
+#: :data:`daskrad.distributed.dask_executor.AHEAD_TASKS`): RenderPark's cube 5.07 → 4.48 s,
+#: office3 (2,000 shots) 15.42 → 14.84 s, the 73,066-element Cornell box 9.02 → 8.79 s; in
+#: this process 3.98 → 3.82, 13.63 → 13.82 and 8.34 → 8.27 s (noise).
+PREFETCH = 8
 
 # A batch executor takes (batch number, shooter patch ids) and returns a handle whose
 # result() is a list of (ids, factors) rows, one per shooter, in the same order.
@@ -176,8 +177,7 @@ Submit = Callable[[int, np.ndarray], object]
 def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, *,
           batch: int, tolerance: float, max_iterations: int,
           on_batch: Callable[[Solution], None] | None = None,
-          prefetch: Callable[[np.ndarray], None] | None = None,
-          ahead: int = PREFETCH) -> Solution:
+          prefetch: Callable[[np.ndarray], None] | None = None) -> Solution:
     """Shoot until the relative unshot RMS is below ``tolerance`` or ``max_iterations`` shots.
 
     ``submit(n, patch_ids)`` starts the form-factor work of batch ``n`` and returns a handle
@@ -186,10 +186,9 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
     ``n`` is applied. ``on_batch`` runs after each applied batch (progress, checkpoints).
 
     ``prefetch(patch_ids)``, when given, hears after each batch which patches rank next
-    after those in flight (``ahead`` batches' worth, :data:`PREFETCH` by default, most unshot
-    power first, no more than the shots left), and an empty list at the end: an executor
-    may compute their rows ahead on cores the batches leave idle, and drop those no longer
-    offered. A row is a pure
+    after those in flight (:data:`PREFETCH` batches' worth, most unshot power first, no more
+    than the shots left), and an empty list at the end: an executor may compute their rows
+    ahead on cores the batches leave idle, and drop those no longer offered. A row is a pure
     function of the geometry and the patch, so this changes when rows are computed, never
     which patches shoot or the bits.
     """
@@ -236,9 +235,9 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
             queue(None)
         sol.queued = [ids.tolist() for ids, _ in pending]
         if prefetch is not None and pending:
-            flight = np.concatenate([p for p, _ in pending])
-            room = min(ahead * batch, max_iterations - sol.iteration - len(flight))
-            prefetch(next_batch(sol.unshot, h.patch_area, max(room, 0), flight))
+            ahead = np.concatenate([p for p, _ in pending])
+            room = min(PREFETCH * batch, max_iterations - sol.iteration - len(ahead))
+            prefetch(next_batch(sol.unshot, h.patch_area, max(room, 0), ahead))
         if on_batch is not None:
             on_batch(sol)
     if prefetch is not None:
@@ -285,5 +284,4 @@ def radiosity(light: DirectLight, settings: Settings, executor, begin: Solution 
     return solve(h, mesh.reflectance, start(light) if begin is None else begin,
                  executor.shots, batch=settings.batch, tolerance=settings.tolerance,
                  max_iterations=settings.max_iterations, on_batch=on_batch,
-                 prefetch=getattr(executor, "prefetch", None),
-                 ahead=getattr(executor, "prefetch_batches", PREFETCH))
+                 prefetch=getattr(executor, "prefetch", None))

@@ -48,11 +48,11 @@ PHASE_SECONDS = 0.5
 TASK_SECONDS = 0.05
 
 #: Tasks of rows computed ahead (:meth:`DaskExecutor.prefetch`) each worker may have
-#: unfinished: with one, a worker sat idle while the client heard that its task was done and
-#: offered the next (the gaps between a worker's tasks, 3–7 ms a median, summed to 2.2 of 10.8
-#: worker-seconds in the cube's solve); with two, the next is already there. A batch then
-#: waits behind at most two such tasks a worker; a higher Dask priority for the batch's own
-#: tasks measured the same. Figures with :attr:`DaskExecutor.prefetch_batches`.
+#: unfinished: one left it idle while the client heard that the task was done and offered
+#: the next (the gaps between a worker's tasks, 3–7 ms a median, summed to 2.2 of 10.8
+#: worker-seconds in the cube's solve); with two, the next is already there (with
+#: :data:`daskrad.solve.PREFETCH`, figures there). A batch then waits behind at most two
+#: such tasks a worker; giving its tasks a higher Dask priority measured the same.
 AHEAD_TASKS = 2
 
 #: Custom dashboard page module (``/daskrad``), added to the scheduler's HTTP routes.
@@ -105,13 +105,6 @@ class _Batch:
 class DaskExecutor:
     """Form factors and tiles as futures of ``client``.
 
-    ``prefetch_batches``: how many batches' worth of the ranking the solve offers for rows
-    computed ahead (:func:`daskrad.solve.solve`); further than in-process, where an idle
-    thread costs nothing to wake: every offer reaches a worker a scheduler's round trip late.
-    With :data:`AHEAD_TASKS` 2 (was 1), 8 (was 2) made 2 thread workers' solves faster:
-    RenderPark's cube 5.07 → 4.48 s, office3 (2,000 shots) 15.42 → 14.84 s, the
-    73,066-element Cornell box 9.02 → 8.79 s, graz (2,000 shots) 34.5 / 33.7 → 35.4 / 33.2 s.
-
     Parameters
     ----------
     client : distributed.Client
@@ -126,8 +119,6 @@ class DaskExecutor:
         The host the dashboard of a cluster started here listens on, for its link; None: the
         client's own link.
     """
-
-    prefetch_batches = 8
 
     def __init__(self, client, store: Store | None = None, cluster=None,
                  own_client: bool = False, dashboard_host: str | None = None):
