@@ -165,8 +165,9 @@ def apply_shot(h: Hierarchy, reflectance: np.ndarray, sol: Solution, shooter: in
 #: workers a short horizon ran dry between batches (a worker waits ~3–7 ms for the client's
 #: next offer); solves, 2 thread workers, PREFETCH 2 → 8 (with two tasks ahead per worker,
 #: :data:`daskrad.distributed.dask_executor.AHEAD_TASKS`): RenderPark's cube 5.07 → 4.48 s,
-#: office3 (2,000 shots) 15.42 → 14.84 s, the 73,066-element Cornell box 9.02 → 8.79 s; in
-#: this process 3.98 → 3.82, 13.63 → 13.82 and 8.34 → 8.27 s (noise).
+#: office3 (2,000 shots) 15.42 → 14.84 s, the 73,066-element Cornell box 9.02 → 8.79 s, graz
+#: (2,000 shots) 34.5 / 33.7 → 35.4 / 33.2 s. In this process, alternating, medians: the
+#: 73k box 8.50 → 7.79 s (of 3), the cube 3.90 → 3.92 s (of 3), graz 30.1 → 29.8 s (of 2).
 PREFETCH = 8
 
 # A batch executor takes (batch number, shooter patch ids) and returns a handle whose
