@@ -54,7 +54,11 @@ from daskrad.errors import OptionError, SceneError
 from daskrad.kernels.geometry import scene_diagonal
 from daskrad.kernels.grid import build_grid
 from daskrad.kernels.hemicube import hemicube_shots
-from daskrad.kernels.hemisphere import hemisphere_shots, hemisphere_visibility
+from daskrad.kernels.hemisphere import (
+    anti_aliased_rows,
+    hemisphere_shots,
+    hemisphere_visibility,
+)
 from daskrad.kernels.lambert import lambert_masked, lambert_shots
 from daskrad.kernels.raycast import raycast_visibility
 from daskrad.kernels.scanline import scanline_shots
@@ -216,9 +220,10 @@ def hemisphere_rows(points, normals, vertices, elem_verts, resolution=DEFAULT_RE
     # true area (Lambert's projected area in pixels): below, the count is aliasing or, for an
     # element thinner than the polyline's chord error, artefacts it shares with its coplanar
     # neighbours and loses to them on ties; the bilinear test at its centroid counts ties visible
-    small = lam * n_disc < tolerances.SUBPIXEL_AREA_PX
-    frac = np.where((covered > 0) & ~small, won / np.maximum(covered, 1), visible)
-    return _conserve(lam * frac, won.sum(axis=1) == n_disc)
+    # (:func:`daskrad.kernels.hemisphere.anti_aliased_rows`: won / covered where that
+    # measures, conserved as :func:`_conserve` does)
+    return anti_aliased_rows(won, covered, visible, lam, int(n_disc),
+                             float(tolerances.SUBPIXEL_AREA_PX))
 
 
 def itembuffer_rows(points, normals, vertices, elem_verts, resolution=DEFAULT_RESOLUTION,

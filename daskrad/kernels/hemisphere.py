@@ -792,3 +792,39 @@ def hemisphere_shots(points, normals, vertices, elem_verts, resolution, edge_ang
                                                     resolution, edge_angle, plane_depth,
                                                     horizon_eps)
     return won, covered, n_disc
+
+
+@jit
+def anti_aliased_rows(won, covered, visible, lam, n_disc, subpixel_px):
+    """``(S, E) float64``: the default method's rows from the raster's counts and Lambert's
+    factors (:func:`daskrad.formfactor.methods.hemisphere_rows` gives the why), conserved.
+
+    ``F = lam · won / covered`` where the element covers a pixel centre and at least
+    ``subpixel_px`` pixels of true area (``lam · n_disc``), else ``lam · visible``; then a
+    row summing to more than 1 is scaled to 1, and a row whose shooter won every disc pixel
+    (a closed view) to exactly 1. ``won, covered : (S, E) int32``, ``visible, lam : (S, E)
+    float64``. One pass over the rows instead of a dozen array operations, without the GIL
+    (graz: ~6 ms of numpy a row of 89,160 elements, held under the GIL the Dask workers share).
+    Each row is summed in element order, the same on any split.
+    """
+    n_shot, n_elem = won.shape
+    out = np.empty((n_shot, n_elem))
+    for s in range(n_shot):
+        total = 0.0
+        n_won = 0
+        for e in range(n_elem):
+            w = won[s, e]
+            n_won += w
+            c = covered[s, e]
+            f = lam[s, e]
+            if c > 0 and not (f * n_disc < subpixel_px):
+                v = f * (w / max(c, 1))
+            else:
+                v = f * visible[s, e]
+            out[s, e] = v
+            total += v
+        if (n_won == n_disc and total > 0.0) or total > 1.0:
+            scale = 1.0 / max(total, 1e-300)
+            for e in range(n_elem):
+                out[s, e] *= scale
+    return out
