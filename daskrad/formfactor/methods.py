@@ -221,7 +221,9 @@ def hemisphere_rows(points, normals, vertices, elem_verts, resolution=DEFAULT_RE
     # element thinner than the polyline's chord error, artefacts it shares with its coplanar
     # neighbours and loses to them on ties; the bilinear test at its centroid counts ties visible
     # (:func:`daskrad.kernels.hemisphere.anti_aliased_rows`: won / covered where that
-    # measures, conserved as :func:`_conserve` does)
+    # measures, conserved as :func:`_conserve` does; one pass without the GIL where a dozen
+    # numpy operations held it: graz's first 600 shots, alternating, in-process 13.84 / 13.56
+    # → 13.01 / 12.79 s, on 2 thread workers 16.22 / 14.63 → 14.06 / 14.09 s)
     return anti_aliased_rows(won, covered, visible, lam, int(n_disc),
                              float(tolerances.SUBPIXEL_AREA_PX))
 
