@@ -269,8 +269,9 @@ def _main(args) -> int:
         sys.stderr.write(f"daskrad: error: {where}{what}\n")
         return 2
     except KeyboardInterrupt as err:
-        why = getattr(err, "message", "the last checkpoint is kept (use --resume)")
-        sys.stderr.write(f"daskrad: interrupted; {why}\n")
+        # a run says what it leaves (commands.resume_hint); elsewhere nothing is claimed
+        why = getattr(err, "message", None)
+        sys.stderr.write(f"daskrad: interrupted; {why}\n" if why else "daskrad: interrupted\n")
         return 130
     return 0
 

@@ -47,21 +47,21 @@ def run_command(args) -> None:
 
     settings = settings_from_args(args)
     output = args.output or str(Path(args.scene).with_suffix(".exr").name)
-    if not warmup.is_warm():
-        # bad input is still one line and exit 2, before any compiling is announced
-        from daskrad.output import Outputs
+    try:        # a Ctrl-C from here on says what it leaves, even before the run starts
+        if not warmup.is_warm():
+            # bad input is still one line and exit 2, before any compiling is announced
+            from daskrad.output import Outputs
 
-        settings.validate()
-        Outputs.of(output)
-        from daskrad.distributed import check_scheduler
-        from daskrad.preprocess import check_size
+            settings.validate()
+            Outputs.of(output)
+            from daskrad.distributed import check_scheduler
+            from daskrad.preprocess import check_size
 
-        check_scheduler(settings)
+            check_scheduler(settings)
 
-        check_size(load_scene(args.scene, args.config, args.camera), settings)
-        warmup.announce()
-        warmup.warmup(verbose=False)
-    try:
+            check_size(load_scene(args.scene, args.config, args.camera), settings)
+            warmup.announce()
+            warmup.warmup(verbose=False)
         run(args.scene, output, settings, progress=not args.quiet, config=args.config,
             resume=args.resume, camera=args.camera)
     except (SystemError, KeyboardInterrupt) as err:

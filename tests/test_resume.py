@@ -287,3 +287,24 @@ def test_ctrl_c_held_by_a_store_call_goes_to_the_handler_that_was_there(tmp_path
         assert during == [[signal.SIGINT]] and got == [signal.SIGINT]
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+def test_ctrl_c_before_the_run_starts_claims_no_checkpoint(tmp_path, monkeypatch, capsys):
+    # an interrupt while the CLI still checks or compiles (before run() made a store) has
+    # nothing to resume, and one outside any run claims nothing at all
+    import daskrad.commands
+    import daskrad.warmup
+    from daskrad import cli
+
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(daskrad.warmup, "is_warm", interrupt)
+    out = tmp_path / "x.exr"
+    assert cli.main(["run", str(CORNELL), "-o", str(out), "-q"]) == 130
+    assert capsys.readouterr().err == ("daskrad: interrupted; it stopped before its solution "
+                                       "store was written: nothing to resume\n")
+    monkeypatch.setattr(daskrad.commands, "info_text", interrupt)
+    assert cli.main(["info", str(CORNELL)]) == 130
+    assert capsys.readouterr().err == "daskrad: interrupted\n"
+    assert not out.exists()
