@@ -56,6 +56,7 @@ from daskrad.kernels.grid import build_grid
 from daskrad.kernels.hemicube import hemicube_shots
 from daskrad.kernels.hemisphere import (
     anti_aliased_rows,
+    conserve_rows,
     hemisphere_shots,
     hemisphere_visibility,
 )
@@ -167,18 +168,12 @@ def hemisphere_counts(points, normals, vertices, elem_verts, resolution=DEFAULT_
 
 
 def _conserve(rows, closed=None):
-    """Scale rows in place so a shot never sends more than the shooter holds (docs/design.md §2).
-
-    A row summing to more than 1 is scaled to 1. A row marked ``closed`` (every disc pixel won:
-    every direction above the horizon sees some element, so the exact row sums to 1) is scaled
-    to exactly 1, which keeps the closed-scene invariant of the item buffer.
-    """
-    total = rows.sum(axis=1)
-    scale = np.where(total > 1.0, 1.0 / np.maximum(total, 1e-300), 1.0)
-    if closed is not None:
-        scale = np.where(closed & (total > 0.0), 1.0 / np.maximum(total, 1e-300), scale)
-    rows *= scale[:, None]
-    return rows
+    """:func:`daskrad.kernels.hemisphere.conserve_rows` of ``rows`` (in place, returned);
+    ``closed`` None: no row is marked closed."""
+    rows = np.ascontiguousarray(rows, dtype=np.float64)
+    flags = (np.zeros(len(rows), dtype=np.bool_) if closed is None
+             else np.ascontiguousarray(closed, dtype=np.bool_))
+    return conserve_rows(rows, flags)
 
 
 def hemisphere_rows(points, normals, vertices, elem_verts, resolution=DEFAULT_RESOLUTION,
@@ -221,7 +216,7 @@ def hemisphere_rows(points, normals, vertices, elem_verts, resolution=DEFAULT_RE
     # element thinner than the polyline's chord error, artefacts it shares with its coplanar
     # neighbours and loses to them on ties; the bilinear test at its centroid counts ties visible
     # (:func:`daskrad.kernels.hemisphere.anti_aliased_rows`: won / covered where that
-    # measures, conserved as :func:`_conserve` does; one pass without the GIL where a dozen
+    # measures, then conserved; one pass without the GIL where a dozen
     # numpy operations held it: graz's first 600 shots, alternating, in-process 13.84 / 13.56
     # → 13.01 / 12.79 s, on 2 thread workers 16.22 / 14.63 → 14.06 / 14.09 s)
     return anti_aliased_rows(won, covered, visible, lam, int(n_disc),

@@ -795,22 +795,39 @@ def hemisphere_shots(points, normals, vertices, elem_verts, resolution, edge_ang
 
 
 @jit
+def conserve_rows(rows, closed):
+    """Scale ``rows (S, E) float64`` in place so a shot never sends more than the shooter
+    holds (docs/design.md §2), and return them: a row summing to more than 1 is scaled to 1,
+    a row marked in ``closed (S,) bool`` (every disc pixel won: every direction above the
+    horizon sees some element, so the exact row sums to 1) to exactly 1 when it sums to more
+    than 0. Each row is summed in element order, the same on any split."""
+    for s in range(rows.shape[0]):
+        total = 0.0
+        for e in range(rows.shape[1]):
+            total += rows[s, e]
+        if (closed[s] and total > 0.0) or total > 1.0:
+            scale = 1.0 / max(total, 1e-300)
+            for e in range(rows.shape[1]):
+                rows[s, e] *= scale
+    return rows
+
+
+@jit
 def anti_aliased_rows(won, covered, visible, lam, n_disc, subpixel_px):
     """``(S, E) float64``: the default method's rows from the raster's counts and Lambert's
-    factors (:func:`daskrad.formfactor.methods.hemisphere_rows` gives the why), conserved.
+    factors (:func:`daskrad.formfactor.methods.hemisphere_rows` gives the why), conserved
+    (:func:`conserve_rows`, closed where the shooter won every disc pixel).
 
     ``F = lam · won / covered`` where the element covers a pixel centre and at least
-    ``subpixel_px`` pixels of true area (``lam · n_disc``), else ``lam · visible``; then a
-    row summing to more than 1 is scaled to 1, and a row whose shooter won every disc pixel
-    (a closed view) to exactly 1. ``won, covered : (S, E) int32``, ``visible, lam : (S, E)
-    float64``. One pass over the rows instead of a dozen array operations, without the GIL
-    (graz: ~6 ms of numpy a row of 89,160 elements, held under the GIL the Dask workers share).
-    Each row is summed in element order, the same on any split.
+    ``subpixel_px`` pixels of true area (``lam · n_disc``), else ``lam · visible``.
+    ``won, covered : (S, E) int32``, ``visible, lam : (S, E) float64``. One pass over the
+    rows instead of a dozen array operations, without the GIL (graz: ~6 ms of numpy a row of
+    89,160 elements, held under the GIL the Dask workers share).
     """
     n_shot, n_elem = won.shape
     out = np.empty((n_shot, n_elem))
+    closed = np.zeros(n_shot, dtype=np.bool_)
     for s in range(n_shot):
-        total = 0.0
         n_won = 0
         for e in range(n_elem):
             w = won[s, e]
@@ -818,13 +835,8 @@ def anti_aliased_rows(won, covered, visible, lam, n_disc, subpixel_px):
             c = covered[s, e]
             f = lam[s, e]
             if c > 0 and not (f * n_disc < subpixel_px):
-                v = f * (w / max(c, 1))
+                out[s, e] = f * (w / max(c, 1))
             else:
-                v = f * visible[s, e]
-            out[s, e] = v
-            total += v
-        if (n_won == n_disc and total > 0.0) or total > 1.0:
-            scale = 1.0 / max(total, 1e-300)
-            for e in range(n_elem):
-                out[s, e] *= scale
-    return out
+                out[s, e] = f * visible[s, e]
+        closed[s] = n_won == n_disc
+    return conserve_rows(out, closed)
