@@ -24,7 +24,7 @@ import numpy as np
 
 from daskrad import tolerances
 from daskrad.errors import OptionError, SceneError
-from daskrad.kernels.arealight import area_irradiance
+from daskrad.kernels.arealight import Faces, area_irradiance, no_faces
 from daskrad.kernels.direct import irradiance_points
 from daskrad.kernels.grid import Grid
 from daskrad.mesh import default_sizes
@@ -92,6 +92,9 @@ class DirectContext(LightArrays):
 
     grid : Grid
         Voxel grid over the scene's triangles (geometry never changes with refinement).
+    faces : Faces
+        The input polygons (convex planar faces) ``grid``'s triangles tile, as patches
+        (:func:`polygon_faces`, :func:`daskrad.kernels.arealight.face_hides`).
     points, normals : (V, 3) float64
         The vertices and the unit normal of each one's polygon.
     area_points : (V, 3) float64
@@ -112,6 +115,7 @@ class DirectContext(LightArrays):
     """
 
     grid: Grid
+    faces: Faces
     points: np.ndarray
     area_points: np.ndarray
     normals: np.ndarray
@@ -226,9 +230,13 @@ def has_lights(scene: Scene) -> bool:
 
 
 def make_context(scene: Scene, h: Hierarchy, grid: Grid, samples: int = AREA_SAMPLES,
-                 method: str | None = None, resolution: int = AREA_RESOLUTION
-                 ) -> DirectContext:
+                 method: str | None = None, resolution: int = AREA_RESOLUTION,
+                 tri_element: np.ndarray | None = None) -> DirectContext:
     """The direct-light context of ``h`` (its vertices) lit by ``scene``'s lights.
+
+    ``tri_element (T,)``: the element of each of ``grid``'s triangles (``Mesh.tri_element``),
+    which names the polygon each lies in (:func:`polygon_faces`); ``None``: no faces, every
+    area light by the window method alone.
 
     ``method`` is a key of :data:`AREA_METHODS` (default: ``Settings.area_method``), with
     ``samples²`` shadow rays (``"rays"``) or an ``resolution²`` window raster
@@ -241,8 +249,10 @@ def make_context(scene: Scene, h: Hierarchy, grid: Grid, samples: int = AREA_SAM
     ddir = np.asarray(dl.direction, np.float64).reshape(-1, 3)
     norm = np.linalg.norm(ddir, axis=1, keepdims=True)
     ddir = ddir / np.where(norm > 0, norm, 1.0)
+    faces = no_faces(len(grid.triangles)) if tri_element is None else polygon_faces(h, tri_element)
     return DirectContext(
         grid=grid,
+        faces=faces,
         points=np.ascontiguousarray(h.vertices, dtype=np.float64),
         area_points=vertex_points(h, vertex_nudge(h)),
         normals=vertex_normals(h),
@@ -257,6 +267,23 @@ def make_context(scene: Scene, h: Hierarchy, grid: Grid, samples: int = AREA_SAM
         area_resolution=int(resolution),
         **emitters(scene, h),
     )
+
+
+def polygon_faces(h: Hierarchy, tri_element: np.ndarray) -> Faces:
+    """The input polygons of ``h`` as the faces a light may hide behind whole.
+
+    A polygon (a triangle or a planar convex quad) is the union of its patches, which are
+    stored in polygon order; ``tri_element (T,)`` names the element, hence the polygon, of
+    each triangle of the occluder grid.
+    """
+    if np.any(np.diff(h.patch_polygon) < 0):
+        raise ValueError("patches must be in polygon order")
+    start = np.searchsorted(h.patch_polygon, np.arange(len(h.polygon_material) + 1))
+    pv = h.patch_verts
+    corners = h.vertices[np.where(pv >= 0, pv, pv[:, :1])]
+    return Faces(tri_face=h.patch_polygon[h.elem_patch[tri_element]].astype(np.int32),
+                 start=start.astype(np.int64), corners=np.ascontiguousarray(corners),
+                 count=np.where(pv[:, 3] >= 0, 4, 3).astype(np.int64))
 
 
 def with_hierarchy(ctx: DirectContext, h: Hierarchy) -> DirectContext:
@@ -298,7 +325,8 @@ def _area_by_hemisphere(ctx: DirectContext, start: int, stop: int) -> np.ndarray
         # The clip height of the hemisphere-base form factor, HORIZON_EPS · diag (the offset
         # is RAY_OFFSET · diag of the same box).
         hz = ctx.offset * (tolerances.HORIZON_EPS / tolerances.RAY_OFFSET)
-        H += area_irradiance(ctx.grid, ctx.area_points[start:stop], ctx.normals[start:stop],
+        H += area_irradiance(ctx.grid, ctx.faces, ctx.area_points[start:stop],
+                             ctx.normals[start:stop],
                              float(ctx.offset), float(hz), ctx.emitter_corners,
                              ctx.emitter_count, ctx.emitter_normal, ctx.emitter_radiance,
                              int(ctx.area_resolution),
@@ -459,7 +487,8 @@ def light(scene: Scene, mesh: Mesh, settings: Settings, executor=None) -> Direct
         return DirectLight(mesh=mesh, irradiance=None, reflected=np.zeros_like(mesh.emission),
                            tvertices=TVertices.empty(), context=None, levels=0,
                            emitters_shot=True)
-    ctx = make_context(scene, h, mesh.grid, settings.area_samples, method=settings.area_method)
+    ctx = make_context(scene, h, mesh.grid, settings.area_samples, method=settings.area_method,
+                       tri_element=mesh.tri_element)
     if not settings.two_pass:  # emitters are shot: gather point and directional lights only
         ctx = without_emitters(ctx)
     H = compute(ctx, 0, len(h.vertices), executor)

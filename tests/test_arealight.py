@@ -11,10 +11,17 @@ import pytest
 from daskrad import cli, direct, tolerances
 from daskrad.errors import OptionError
 from daskrad.formfactor import analytic_rows
-from daskrad.kernels.arealight import HINT, area_irradiance_stats, clip_planes, clip_polygon
+from daskrad.kernels.arealight import (
+    HINT,
+    Faces,
+    area_irradiance_stats,
+    clip_planes,
+    clip_polygon,
+    no_faces,
+)
 from daskrad.kernels.direct import irradiance_points
 from daskrad.kernels.geometry import orthonormal_basis
-from daskrad.kernels.grid import build_grid
+from daskrad.kernels.grid import any_hit, build_grid
 from daskrad.kernels.lambert import lambert_polygon
 from daskrad.mesh import build_hierarchy, hierarchy_triangles
 from daskrad.scene import box_scene, scene_from_arrays
@@ -40,10 +47,12 @@ def _lights(corners):
             np.array([[0.0, -1.0, 0.0]]), LE[None].copy())
 
 
-def _area(tris, points, normals, corners, resolution):
+def _area(tris, points, normals, corners, resolution, faces=None):
+    """The window method (``faces``: none) or the face test first, then the window."""
     grid = build_grid(np.ascontiguousarray(tris))
-    return area_irradiance_stats(grid, np.atleast_2d(points), np.atleast_2d(normals), OFF, HZ,
-                                 *_lights(corners), resolution, EDGE)
+    faces = no_faces(len(tris)) if faces is None else faces
+    return area_irradiance_stats(grid, faces, np.atleast_2d(points), np.atleast_2d(normals),
+                                 OFF, HZ, *_lights(corners), resolution, EDGE)
 
 
 def _lambert(p, n, corners):
@@ -124,6 +133,65 @@ def test_half_hidden_light_within_the_window_bound(resolution):
     np.testing.assert_allclose(H[0] / LE, H[0, 0] / LE[0], rtol=1e-15)  # one V for all colours
 
 
+def _faces(quads):
+    """Each quad of ``quads`` one face (both its triangles), itself its one piece: the
+    triangles ``_quad_tris`` makes of them, in order, and their :class:`Faces`."""
+    quads = np.asarray(quads, float)
+    tris = np.concatenate([_quad_tris(q) for q in quads])
+    return tris, Faces(np.repeat(np.arange(len(quads)), 2).astype(np.int32),
+                       np.arange(len(quads) + 1, dtype=np.int64), quads.copy(),
+                       np.full(len(quads), 4, np.int64))
+
+
+def _at(y, x0, x1, z0, z1):
+    """The quad ``[x0, x1] × [z0, z1]`` at height ``y``."""
+    return [[x0, y, z0], [x1, y, z0], [x1, y, z1], [x0, y, z1]]
+
+
+def test_a_face_that_hides_the_whole_light_settles_it_by_one_ray():
+    # A 3 × 3 board at y = 1 between the floor points and the 2 × 2 light at y = 2: from
+    # every point below its middle the pyramid to the light passes through the board, whose
+    # two triangles are one face. The face test proves V = 0 (work 1: no search, no raster);
+    # the window method alone rasterizes the board and finds every light pixel hidden too.
+    tris, faces = _faces([LIGHT, _at(1.0, -1.5, 1.5, -1.5, 1.5)])
+    pts = np.array([[0.0, 0, 0], [0.3, 0, 0.2], [-0.45, 0, 0.4], [0.1, 0, -0.5]])
+    up = np.tile(UP, (len(pts), 1))
+    H, work = _area(tris, pts, up, LIGHT, 32, faces)
+    assert np.all(H == 0.0) and np.all(work == 1)
+    H_w, work_w = _area(tris, pts, up, LIGHT, 32)
+    assert np.all(H_w == 0.0) and np.all(work_w >= 1)
+    # the light's own face is never an occluder: with the board gone the corner rays reach
+    # the light (less than 2 off before it), and V = 1
+    H_open, work_open = _area(tris[:2], pts, up, LIGHT, 32, _faces([LIGHT])[1])
+    F = np.array([lambert_polygon(*p, *UP, LIGHT, 4) for p in pts])
+    assert np.all(work_open == 0)
+    assert np.array_equal(H_open, np.pi * LE[None, :] * F[:, None] * 1.0)
+
+
+@pytest.mark.parametrize("case", ["partial", "two faces", "below horizon", "at the light"])
+def test_the_face_test_proves_nothing_it_cannot(case):
+    # Where no single face hides the whole light the face test must decline, and the window
+    # method decides, with the bits it has without faces.
+    p, n = P, UP
+    if case == "partial":        # the board hides x > 0.4 only: V ≈ 0.56, not 0
+        quads = [LIGHT, _at(1.0, 0.4, 3, -3, 3)]
+    elif case == "two faces":    # two boards meeting at x = 0.3 hide it together (V = 0)
+        quads = [LIGHT, _at(1.0, -3, 0.3, -3, 3), _at(1.0, 0.3, 3, -3, 3)]
+    elif case == "below horizon":  # a point on a wall z = 0, half the light behind it
+        quads = [LIGHT, _at(1.5, -3, 3, -3, 3)]
+        p, n = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    else:                        # a board within off of the light hides nothing
+        quads = [LIGHT, _at(2.0 - 0.5 * OFF, -1.5, 1.5, -1.5, 1.5)]
+    tris, faces = _faces(quads)
+    H, work = _area(tris, p, n, LIGHT, 32, faces)
+    H_w, work_w = _area(tris, p, n, LIGHT, 32)
+    assert np.array_equal(H, H_w) and np.array_equal(work, work_w)
+    F = lambert_polygon(*p, *n, LIGHT, 4)
+    V = H[0, 0] / (np.pi * LE[0] * F)
+    assert {"partial": 0.3 < V < 0.8, "two faces": V == 0.0,
+            "below horizon": F > 0 and V == 0.0, "at the light": V == 1.0}[case]
+
+
 def _clip(tri, planes, count):
     poly = np.zeros((6, 8))
     poly[:3, :len(tri)] = np.asarray(tri, float).T
@@ -201,12 +269,17 @@ def test_fully_hidden_light_gives_zero_through_the_pipeline():
                               [0, 1, 0], diffuse=[[0.5] * 3, [0, 0, 0]],
                               emission=[[0] * 3, [3.0] * 3])
     h = build_hierarchy(scene, 2.0, 0.25)
-    grid = build_grid(hierarchy_triangles(h)[0])
-    ctx = direct.make_context(scene, h, grid, method="hemisphere")
+    tris, _, tri_element = hierarchy_triangles(h)
+    ctx = direct.make_context(scene, h, build_grid(tris), method="hemisphere",
+                              tri_element=tri_element)
     H = direct.compute(ctx, 0, len(h.vertices))
     floor = (direct.vertex_normals(h)[:, 1] > 0.5) & (h.vertices[:, 1] < 0.25)
     below = floor & (np.abs(h.vertices[:, 0]) < 0.2) & (np.abs(h.vertices[:, 2]) < 0.2)
     assert below.any() and np.all(H[below] == 0.0)
+    # there the blocker, one polygon, hides every emitter patch by itself (the face test);
+    # the window method alone finds the same zeros
+    window = direct.compute(replace(ctx, faces=no_faces(len(tris))), 0, len(h.vertices))
+    assert np.all(window[below] == 0.0)
     # and the floor outside the blocker's shadow gets light (the method is not all zeros)
     assert (H[floor & (np.abs(h.vertices[:, 0]) > 0.99)] > 0).all()
 
@@ -255,14 +328,14 @@ def test_unknown_method_is_an_option_error(capsys):
     assert args.area_method == "hemisphere"
 
 
-def _box_tris(lo, hi):
-    """The 12 triangles of the closed axis-aligned box ``[lo, hi]`` (occluders are
-    two-sided, so their winding does not matter)."""
+def _box_quads(lo, hi):
+    """The 6 quads of the closed axis-aligned box ``[lo, hi]`` (occluders are two-sided, so
+    their winding does not matter)."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     c = np.array([[hi[0] if i & 1 else lo[0], hi[1] if i & 2 else lo[1],
                    hi[2] if i & 4 else lo[2]] for i in range(8)])
     faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
-    return np.concatenate([_quad_tris(c[list(f)]) for f in faces])
+    return [c[list(f)] for f in faces]
 
 
 def test_early_stop_gives_the_same_bits_as_drawing_every_occluder():
@@ -275,11 +348,11 @@ def test_early_stop_gives_the_same_bits_as_drawing_every_occluder():
     from daskrad.kernels.arealight import SLABS
 
     rng = np.random.default_rng(12)
-    room = _box_tris([0, 0, 0], [4, 3, 4])
-    blockers = [_box_tris([0.5, 0.7, 0.5], [1.7, 0.75, 1.3]),     # desks
-                _box_tris([2.2, 0.7, 2.4], [3.5, 0.75, 3.2]),
-                _box_tris([1.9, 0.0, 0.4], [2.1, 3.0, 0.6]),       # pillars
-                _box_tris([0.9, 0.0, 2.9], [1.1, 3.0, 3.1])]
+    room = _box_quads([0, 0, 0], [4, 3, 4])
+    blockers = [_box_quads([0.5, 0.7, 0.5], [1.7, 0.75, 1.3]),     # desks
+                _box_quads([2.2, 0.7, 2.4], [3.5, 0.75, 3.2]),
+                _box_quads([1.9, 0.0, 0.4], [2.1, 3.0, 0.6]),       # pillars
+                _box_quads([0.9, 0.0, 2.9], [1.1, 3.0, 3.1])]
     n_lights = 48
     centres = rng.uniform([0.3, 0.3, 0.3], [3.7, 2.7, 3.7], size=(n_lights, 3))
     normals = rng.normal(size=(n_lights, 3))
@@ -291,9 +364,8 @@ def test_early_stop_gives_the_same_bits_as_drawing_every_occluder():
         s = 0.06 + 0.1 * rng.random()
         corners[m] = centres[m] + s * np.array([-t1 - t2, t1 - t2, t1 + t2, -t1 + t2])
     shut = np.arange(8)  # the first 8 lights sit inside closed boxes of their own
-    boxes = [_box_tris(centres[m] - 0.25, centres[m] + 0.25) for m in shut]
-    tris = np.concatenate([room, *blockers, *boxes,
-                           *[_quad_tris(corners[m]) for m in range(n_lights)]])
+    boxes = [_box_quads(centres[m] - 0.25, centres[m] + 0.25) for m in shut]
+    tris, faces = _faces([*room, *sum(blockers, []), *sum(boxes, []), *corners])
     grid = build_grid(np.ascontiguousarray(tris))
     pts = rng.uniform([0.05, 0.05, 0.05], [3.95, 2.95, 3.95], size=(400, 3))
     outside = np.all([np.abs(pts - centres[m]).max(axis=1) > 0.3 for m in shut], axis=0)
@@ -303,9 +375,10 @@ def test_early_stop_gives_the_same_bits_as_drawing_every_occluder():
     lights = (corners, np.full(n_lights, 4, np.int64), normals,
               np.tile(LE, (n_lights, 1)))
     R = 16
+    none = no_faces(len(tris))  # the window method alone
 
     def run(ls, slabs, hint=HINT):
-        return area_irradiance_stats(grid, pts, nrm, OFF, HZ, *ls, R, EDGE, slabs, hint)
+        return area_irradiance_stats(grid, none, pts, nrm, OFF, HZ, *ls, R, EDGE, slabs, hint)
 
     H, work = run(lights, SLABS)
     H_ref, work_ref = run(lights, 0)
@@ -320,7 +393,8 @@ def test_early_stop_gives_the_same_bits_as_drawing_every_occluder():
     row = np.ascontiguousarray(np.column_stack([np.linspace(0.1, 3.9, 60), np.full(60, 0.05),
                                                 np.full(60, 2.0)]))
     up = np.tile([0.0, 1.0, 0.0], (60, 1))
-    by_row = [area_irradiance_stats(grid, row, up, OFF, HZ, *shut_lights, R, EDGE, SLABS, h)
+    by_row = [area_irradiance_stats(grid, none, row, up, OFF, HZ, *shut_lights, R, EDGE, SLABS,
+                                    h)
               for h in (HINT, 0)]
     assert np.array_equal(by_row[0][0], by_row[1][0]) and not by_row[0][0].any()
     assert by_row[0][1].sum() < by_row[1][1].sum()
@@ -345,3 +419,22 @@ def test_early_stop_gives_the_same_bits_as_drawing_every_occluder():
         kinds |= {"partial"} if (lit & (V > 0) & (V < 1)).any() else set()
         kinds |= {"visible"} if (lit & (V == 1)).any() else set()
     assert kinds == {"hidden", "partial", "visible"}
+    # The face test first (each quad of the room one face) settles pairs by one ray, and
+    # changes nothing else: where its bits differ from the window method's it proved a light
+    # wholly hidden that the 16 × 16 raster let a pixel or two through, and a fan of 24 × 24
+    # shadow rays to the light finds it hidden too.
+    H_f, work_f = area_irradiance_stats(grid, faces, pts, nrm, OFF, HZ, *lights, R, EDGE)
+    assert work_f.sum() < work.sum()
+    u = (np.arange(24) + 0.5) / 24
+    for m in range(n_lights):
+        one = tuple(a[m:m + 1] for a in lights)
+        Hf = area_irradiance_stats(grid, faces, pts, nrm, OFF, HZ, *one, R, EDGE)[0][:, 0]
+        Hw = run(one, SLABS)[0][:, 0]
+        c = corners[m]
+        fan = (c[0] + u[:, None, None] * (c[1] - c[0]) + u[None, :, None] * (c[3] - c[0]))
+        for i in np.flatnonzero(Hf != Hw):
+            assert Hf[i] == 0.0
+            eye = pts[i] + OFF * nrm[i]
+            d = fan.reshape(-1, 3) - eye
+            dl = np.linalg.norm(d, axis=1)
+            assert any_hit(grid, np.tile(eye, (len(d), 1)), d, OFF / dl, 1 - OFF / dl).all()

@@ -636,13 +636,14 @@ def _known_types() -> dict:
     is ever built from a store (a crafted store cannot call an arbitrary function)."""
     from daskrad.direct import DirectContext, Lights
     from daskrad.formfactor.shooting import ShootContext
+    from daskrad.kernels.arealight import Faces
     from daskrad.kernels.grid import Grid
     from daskrad.render import GatherContext, Junctions, RenderContext
     from daskrad.scene.types import Camera
 
     return {f"{t.__module__}:{t.__qualname__}": t
-            for t in (DirectContext, Lights, ShootContext, Grid, RenderContext, GatherContext,
-                      Junctions, Camera)}
+            for t in (DirectContext, Lights, ShootContext, Grid, Faces, RenderContext,
+                      GatherContext, Junctions, Camera)}
 
 
 def _encode(obj, prefix: str, arrays: dict):
