@@ -43,7 +43,8 @@ from pathlib import Path
 import numpy as np
 
 from daskrad import direct, tolerances
-from daskrad.kernels.arealight import HINT, SLABS, area_irradiance_stats, no_faces
+from daskrad.kernels.arealight import HINT, SLABS, area_irradiance_stats
+from daskrad.kernels.faces import no_faces
 from daskrad.kernels.grid import build_grid
 from daskrad.kernels.lambert import lambert_polygon
 from daskrad.mesh import build_hierarchy, default_sizes, hierarchy_triangles

@@ -24,8 +24,9 @@ import numpy as np
 
 from daskrad import tolerances
 from daskrad.errors import OptionError, SceneError
-from daskrad.kernels.arealight import Faces, area_irradiance, no_faces
+from daskrad.kernels.arealight import area_irradiance
 from daskrad.kernels.direct import irradiance_points
+from daskrad.kernels.faces import Faces, no_faces
 from daskrad.kernels.grid import Grid
 from daskrad.mesh import default_sizes
 from daskrad.mesh.refine import MIN_SIZE_DIVISOR, TVertices, refine

@@ -11,15 +11,9 @@ import pytest
 from daskrad import cli, direct, tolerances
 from daskrad.errors import OptionError
 from daskrad.formfactor import analytic_rows
-from daskrad.kernels.arealight import (
-    HINT,
-    Faces,
-    area_irradiance_stats,
-    clip_planes,
-    clip_polygon,
-    no_faces,
-)
+from daskrad.kernels.arealight import HINT, area_irradiance_stats, clip_planes, clip_polygon
 from daskrad.kernels.direct import irradiance_points
+from daskrad.kernels.faces import Faces, no_faces
 from daskrad.kernels.geometry import orthonormal_basis
 from daskrad.kernels.grid import any_hit, build_grid
 from daskrad.kernels.lambert import lambert_polygon

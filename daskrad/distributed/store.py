@@ -636,7 +636,7 @@ def _known_types() -> dict:
     is ever built from a store (a crafted store cannot call an arbitrary function)."""
     from daskrad.direct import DirectContext, Lights
     from daskrad.formfactor.shooting import ShootContext
-    from daskrad.kernels.arealight import Faces
+    from daskrad.kernels.faces import Faces
     from daskrad.kernels.grid import Grid
     from daskrad.render import GatherContext, Junctions, RenderContext
     from daskrad.scene.types import Camera

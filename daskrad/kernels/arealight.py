@@ -34,6 +34,10 @@ measures it on the disc, but only where the light is:
 4. ``V = (light pixels not hidden) / (light pixels)``: each pixel of the window has the same
    area on the disc, hence the same projected solid angle (eqs. 6–7 restricted to the window).
 
+Before step 1, :func:`daskrad.kernels.faces.face_hides` tries to prove the light wholly hidden
+by a single convex face of the scene (one ray and a few point-in-polygon tests); where it
+does, ``V = 0`` and nothing else runs (:func:`area_irradiance_stats`).
+
 Steps 1 and 3 are interleaved (:func:`visible_fraction`): the cells are searched slab by slab
 from the eye towards the light and each slab's candidates drawn at once, and the search stops
 as soon as every light pixel is hidden (``V = 0`` exactly: a hidden pixel never becomes
@@ -62,13 +66,12 @@ in: the result has the same bits for any batching and any number of workers.
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 
 from daskrad.kernels._jit import jit
+from daskrad.kernels.faces import face_hides
 from daskrad.kernels.geometry import lex_less, orthonormal_basis
-from daskrad.kernels.grid import any_hit_one, closest_hit_one
+from daskrad.kernels.grid import any_hit_one
 from daskrad.kernels.hemisphere import (
     depth_coefficients,
     edge_capacity,
@@ -617,135 +620,6 @@ def _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid, cand,
     return found
 
 
-class Faces(NamedTuple):
-    """The convex planar faces the occluder grid's triangles tile (:func:`face_hides`).
-
-    tri_face : (T,) int32
-        The face of each of the grid's triangles; ``-1``: none (proves nothing).
-    start : (F + 1,) int64
-        Face ``f`` is the union of the convex pieces ``start[f]:start[f + 1]``.
-    corners : (P, 4, 3) float64
-        The pieces (patches), counter-clockwise about their face's normal; ``count (P,)
-        int64`` corners each (3 or 4).
-    """
-
-    tri_face: np.ndarray
-    start: np.ndarray
-    corners: np.ndarray
-    count: np.ndarray
-
-
-def no_faces(n_triangles: int) -> Faces:
-    """Faces that prove nothing: the window method alone."""
-    return Faces(np.full(n_triangles, -1, np.int32), np.zeros(1, np.int64),
-                 np.zeros((0, 4, 3)), np.zeros(0, np.int64))
-
-
-@jit
-def _in_face(faces, f, x, y, z, nx, ny, nz, eps):
-    """Whether the point ``(x, y, z)`` in face ``f``'s plane (unit normal ``n``) lies in one of
-    its pieces, within ``eps`` of its edges (a point on an edge two pieces share is in both)."""
-    for q in range(faces.start[f], faces.start[f + 1]):
-        c = faces.corners[q]
-        m = faces.count[q]
-        inside = True
-        for a in range(m):
-            b = a + 1 if a + 1 < m else 0
-            ux = c[b, 0] - c[a, 0]
-            uy = c[b, 1] - c[a, 1]
-            uz = c[b, 2] - c[a, 2]
-            wx = x - c[a, 0]
-            wy = y - c[a, 1]
-            wz = z - c[a, 2]
-            # (u × w) · n: the signed distance from the edge's line times |u|
-            s = (uy * wz - uz * wy) * nx + (uz * wx - ux * wz) * ny + (ux * wy - uy * wx) * nz
-            if s < -eps * np.sqrt(ux * ux + uy * uy + uz * uz):
-                inside = False
-                break
-        if inside:
-            return True
-    return False
-
-
-@jit
-def face_hides(grid, faces, ex, ey, ez, n, corners, count, en, off, hz):
-    """Whether one convex face of the scene hides the whole light from the eye ``e``.
-
-    ``faces``: :class:`Faces`. The ray from ``e`` to the light's first corner is traced to
-    its closest hit, a triangle of face ``f``; the rays to the other corners need only cross
-    ``f``'s plane inside ``f``. When every corner's ray crosses ``f`` above the horizon
-    (height over ``e`` along ``n`` above ``hz``) and nearer than the light, ``f``'s plane
-    separates ``e`` from the whole light and the pyramid's section by it, the convex hull of
-    the crossings, lies in the convex face: every ray from ``e`` to the light is blocked,
-    ``V = 0`` exactly. The gap to the light along any such ray is at least ``(1 − max t) h``,
-    ``t`` the crossings' parameters (``1/t`` is affine over the light, so ``t`` is largest at
-    a corner) and ``h`` the eye's height over the light's plane; it must exceed ``2 off`` (the
-    raster's rule: an occluder hides only what lies more than ``off`` in front of the light).
-    The light must lie wholly above the horizon, so that the window method would see all of
-    it.
-
-    One ray and three point-in-face tests instead of the pyramid's search: in a furnished
-    interior most vertex-light pairs are wholly hidden (RenderPark's office: 83 %) and about
-    two thirds of those by a single wall, floor or desk top. False whenever it cannot prove
-    it; the caller then runs the window method.
-    """
-    for a in range(count):
-        if not (n[0] * (corners[a, 0] - ex) + n[1] * (corners[a, 1] - ey)
-                + n[2] * (corners[a, 2] - ez)) > hz:
-            return False
-    o = np.empty(3)
-    d = np.empty(3)
-    o[0] = ex
-    o[1] = ey
-    o[2] = ez
-    d[0] = corners[0, 0] - ex
-    d[1] = corners[0, 1] - ey
-    d[2] = corners[0, 2] - ez
-    t, k, _, _ = closest_hit_one(grid, o, d, 0.0, 1.0)
-    if k < 0:
-        return False
-    f = faces.tri_face[k]
-    if f < 0:
-        return False
-    tri = grid.triangles[k]
-    ux = tri[1, 0] - tri[0, 0]
-    uy = tri[1, 1] - tri[0, 1]
-    uz = tri[1, 2] - tri[0, 2]
-    vx = tri[2, 0] - tri[0, 0]
-    vy = tri[2, 1] - tri[0, 1]
-    vz = tri[2, 2] - tri[0, 2]
-    fx = uy * vz - uz * vy
-    fy = uz * vx - ux * vz
-    fz = ux * vy - uy * vx
-    fl = np.sqrt(fx * fx + fy * fy + fz * fz)
-    if not fl > 0.0:
-        return False
-    fx /= fl
-    fy /= fl
-    fz /= fl
-    fd = fx * tri[0, 0] + fy * tri[0, 1] + fz * tri[0, 2] - (fx * ex + fy * ey + fz * ez)
-    t_max = 0.0
-    for a in range(count):
-        dx = corners[a, 0] - ex
-        dy = corners[a, 1] - ey
-        dz = corners[a, 2] - ez
-        if a > 0:
-            dn = fx * dx + fy * dy + fz * dz
-            if dn == 0.0:
-                return False
-            t = fd / dn
-            if not (t > 0.0 and t < 1.0):
-                return False
-            if not _in_face(faces, f, ex + t * dx, ey + t * dy, ez + t * dz, fx, fy, fz,
-                            grid.eps):
-                return False
-        if not t * (n[0] * dx + n[1] * dy + n[2] * dz) > hz:
-            return False
-        t_max = max(t_max, t)
-    h = en[0] * (ex - corners[0, 0]) + en[1] * (ey - corners[0, 1]) + en[2] * (ez - corners[0, 2])
-    return (1.0 - t_max) * h > 2.0 * off
-
-
 @jit
 def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_thr, tab,
                      planes, stamp, sid, cand, lx, ly, lz, ev, enrm, eoff, scr, qclip, xs, ys,
@@ -871,8 +745,8 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
     faces : Faces
         The convex planar faces (input polygons) ``grid``'s triangles tile: a light that one
         face hides wholly is settled by one ray (:func:`face_hides`) before any search.
-        :func:`no_faces`: the window method alone (the same ``V`` up to the raster's own
-        error where a face hides the light).
+        :func:`~daskrad.kernels.faces.no_faces`: the window method alone (the same ``V`` up
+        to the raster's own error where a face hides the light).
     points, normals : (n, 3) float64
         Where (for a vertex: moved a hair into its polygon) and the unit normal of the lit
         side.
