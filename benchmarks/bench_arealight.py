@@ -24,10 +24,14 @@ of three in-process runs of :func:`daskrad.direct.compute` (kernels compiled bef
 repository) measures instead the window method's early stop on a scene with many luminaires
 (issue 12, item 5): over ``--vertices`` vertices (default 8000; 16 runs of consecutive
 vertices spread over the scene, as the direct pass lights consecutive vertices in a task), CPU
-seconds of the window at 32² with the slab search and early stop (``SLABS``), with and without
-the hint (the occluders that last hid a light searched first, ``HINT``), against the
-exhaustive reference (``slabs = 0``: every pyramid searched whole, every candidate drawn),
-alternated in one process, with the vertex-light pairs by kind; all must give the same bits.
+seconds of the window at 32² as the direct pass runs it (the face test first,
+:mod:`daskrad.kernels.faces`, then the window with the hint and the early stop), and of the
+window alone with the slab search and early stop (``SLABS``), with and without the hint (the
+occluders that last hid a light searched first, ``HINT``), against the exhaustive reference
+(``slabs = 0``: every pyramid searched whole, every candidate drawn), alternated in one
+process, with the vertex-light pairs by kind. The window's modes must give the same bits; the
+face test's vertices that moved (where it proved ``V = 0`` and the raster let a pixel or two
+through) are counted, with their largest change.
 Results go to ``results/arealight_scenes.json``.
 """
 
