@@ -15,7 +15,7 @@ from daskrad.kernels.arealight import HINT, area_irradiance_stats, clip_planes, 
 from daskrad.kernels.direct import irradiance_points
 from daskrad.kernels.faces import Faces, no_faces
 from daskrad.kernels.geometry import orthonormal_basis
-from daskrad.kernels.grid import any_hit, build_grid
+from daskrad.kernels.grid import build_grid
 from daskrad.kernels.lambert import lambert_polygon
 from daskrad.mesh import build_hierarchy, hierarchy_triangles
 from daskrad.scene import box_scene, scene_from_arrays
@@ -413,22 +413,10 @@ def test_early_stop_gives_the_same_bits_as_drawing_every_occluder():
         kinds |= {"partial"} if (lit & (V > 0) & (V < 1)).any() else set()
         kinds |= {"visible"} if (lit & (V == 1)).any() else set()
     assert kinds == {"hidden", "partial", "visible"}
-    # The face test first (each quad of the room one face) settles pairs by one ray, and
-    # changes nothing else: where its bits differ from the window method's it proved a light
-    # wholly hidden that the 16 × 16 raster let a pixel or two through, and a fan of 24 × 24
-    # shadow rays to the light finds it hidden too.
+    # The face test first (each quad of the room one face) settles pairs by one ray and
+    # changes no bit here: where it proves a light hidden, the 16 × 16 raster finds every
+    # light pixel hidden too (it can differ only where the raster lets a pixel through a face
+    # that covers the whole light, which this room does not have)
     H_f, work_f = area_irradiance_stats(grid, faces, pts, nrm, OFF, HZ, *lights, R, EDGE)
     assert work_f.sum() < work.sum()
-    u = (np.arange(24) + 0.5) / 24
-    for m in range(n_lights):
-        one = tuple(a[m:m + 1] for a in lights)
-        Hf = area_irradiance_stats(grid, faces, pts, nrm, OFF, HZ, *one, R, EDGE)[0][:, 0]
-        Hw = run(one, SLABS)[0][:, 0]
-        c = corners[m]
-        fan = (c[0] + u[:, None, None] * (c[1] - c[0]) + u[None, :, None] * (c[3] - c[0]))
-        for i in np.flatnonzero(Hf != Hw):
-            assert Hf[i] == 0.0
-            eye = pts[i] + OFF * nrm[i]
-            d = fan.reshape(-1, 3) - eye
-            dl = np.linalg.norm(d, axis=1)
-            assert any_hit(grid, np.tile(eye, (len(d), 1)), d, OFF / dl, 1 - OFF / dl).all()
+    assert np.array_equal(H_f, H)
