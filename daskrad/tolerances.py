@@ -12,6 +12,7 @@ nothing of the project outside ``daskrad.kernels``) and re-exported here, so
 from daskrad.kernels.tolerances import (  # noqa: F401  (re-exported)
     COORD_ROUND,
     DEPTH_TIE,
+    FAN_MARGIN,
     GRID_MARGIN,
     GRID_PAD,
     LEX_TIE,

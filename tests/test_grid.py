@@ -431,3 +431,90 @@ def test_huge_diagonal_triangle_registers_a_sheet_not_the_whole_box():
     cells, tris = registered_pairs(grid)
     n_big = int((tris == 0).sum())
     assert nc > 1000 and n_big < 0.3 * nc
+
+
+# ------------------------------------------------------------------------------------------
+# Fans: many rays from one origin, the surface's own triangles decided once.
+
+
+def _fan_walk():
+    from numba import njit
+
+    @njit
+    def walk(grid, origins, normals, dirs, tmax):
+        """Every ray of every fan, with and without the fan: closest (t, tri, u, v) and any
+        hit before ``tmax``; and how many triangles each fan found wholly below it."""
+        n, k = dirs.shape[0], dirs.shape[1]
+        plain = np.empty((n, k, 4))
+        fanned = np.empty((n, k, 4))
+        any_plain = np.empty((n, k), np.bool_)
+        any_fanned = np.empty((n, k), np.bool_)
+        below = np.zeros(n, np.int64)
+        fan = G.new_fan(grid)
+        for i in range(n):
+            G.aim_fan(fan, grid, origins[i], normals[i])
+            for r in range(k):
+                t, tri, u, v = G.closest_hit_one(grid, origins[i], dirs[i, r], 0.0, np.inf)
+                plain[i, r, 0], plain[i, r, 1], plain[i, r, 2], plain[i, r, 3] = t, tri, u, v
+                t, tri, u, v = G.closest_hit_fan(grid, fan, origins[i], dirs[i, r], 0.0,
+                                                 np.inf)
+                fanned[i, r, 0], fanned[i, r, 1], fanned[i, r, 2], fanned[i, r, 3] = \
+                    t, tri, u, v
+                any_plain[i, r] = G.any_hit_one(grid, origins[i], dirs[i, r], 0.0, tmax)
+                any_fanned[i, r] = G.any_hit_fan(grid, fan, origins[i], dirs[i, r], 0.0, tmax)
+            below[i] = (fan.stamp == 2 * fan.key[0] + 1).sum()
+        return plain, fanned, any_plain, any_fanned, below
+
+    return walk
+
+
+@pytest.mark.parametrize("offset", [0.0, 3e3])
+def test_fan_gives_the_plain_walks_bits_and_skips_the_surface_below(rng, offset):
+    # Origins a ray offset above a height field (at lattice vertices, where 6 triangles meet,
+    # and at random points), rays into the upper hemisphere, some grazing it, plus a soup of
+    # small triangles just above, across and just below the tangent planes: the fan must find
+    # exactly the hits of the plain walk, while skipping the field's triangles beneath.
+    m = 10
+    field, _ = height_field(m, offset=offset)
+    grid0 = G.build_grid(field)
+    n_fan, k = 40, 64
+    xy = np.concatenate([rng.integers(1, m, (n_fan // 2, 2)).astype(float),
+                         rng.uniform(0.5, m - 0.5, (n_fan - n_fan // 2, 2))])
+    o = np.empty((n_fan, 3))
+    nrm = np.empty((n_fan, 3))
+    down = np.tile([0.0, 0.0, -20.0], (n_fan, 1))
+    start = np.column_stack([xy + offset, np.full(n_fan, 10.0 + offset)])
+    t, tri, _, _ = G.closest_hit(grid0, start, down, 0.0, np.inf)
+    assert (tri >= 0).all()
+    surface = start + t[:, None] * down
+    e1 = field[tri, 1] - field[tri, 0]
+    e2 = field[tri, 2] - field[tri, 0]
+    nrm = np.cross(e1, e2)
+    nrm *= np.sign(nrm[:, 2:3]) / np.linalg.norm(nrm, axis=1, keepdims=True)
+    diag = float(np.linalg.norm(np.ptp(field.reshape(-1, 3), axis=0)))
+    o = surface + 1e-7 * diag * nrm                      # the shadow rays' offset
+    # small triangles about the tangent planes, half of them parallel to it, at heights of
+    # ±1e-9 to ±1e-4 of the diagonal: grazing rays hit those just above
+    nr = np.repeat(nrm, 8, axis=0)
+    corners = rng.normal(0, 0.3, (8 * n_fan, 3, 3))
+    flat = rng.random(8 * n_fan) < 0.5
+    corners[flat] -= np.einsum("nkj,nj->nk", corners[flat], nr[flat])[..., None] * nr[flat, None]
+    height = diag * 10.0 ** rng.uniform(-9, -4, (8 * n_fan, 1)) * rng.choice([-1.0, 1.0],
+                                                                            (8 * n_fan, 1))
+    soup_ = (np.repeat(o, 8, axis=0) + height * nr)[:, None] + corners
+    grid = G.build_grid(np.concatenate([field, soup_]))
+    # directions in each upper hemisphere: uniform, and a quarter grazing (d·n ~ 1e-9 .. 1e-3)
+    d = rng.normal(size=(n_fan, k, 3))
+    d -= np.minimum(np.einsum("nkj,nj->nk", d, nrm), 0.0)[..., None] * 2 * nrm[:, None]
+    tang = d - np.einsum("nkj,nj->nk", d, nrm)[..., None] * nrm[:, None]
+    graze = 10.0 ** rng.uniform(-9, -3, (n_fan, k // 4, 1))
+    d[:, : k // 4] = tang[:, : k // 4] + graze * nrm[:, None]
+    plain, fanned, any_plain, any_fanned, below = _fan_walk()(grid, o, nrm, d, 2.0)
+    np.testing.assert_array_equal(fanned, plain)          # t, tri, u, v: the same bits
+    np.testing.assert_array_equal(any_fanned, any_plain)
+    hit = plain[..., 1] >= 0
+    assert 0.2 < hit.mean() < 1.0 and 0.0 < any_plain.mean() < 1.0
+    # the soup's triangles met were hit somewhere, so the cull had something to get wrong
+    assert (plain[..., 1][hit] >= len(field)).any()
+    # every fan skipped triangles of the field under it (rays leave through them)
+    assert (below > 0).all()

@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from daskrad.kernels._jit import jit
-from daskrad.kernels.grid import any_hit_one
+from daskrad.kernels.grid import aim_fan, any_hit_fan, new_fan
 from daskrad.kernels.lambert import lambert_polygon
 
 _INV_2_53 = 1.0 / 9007199254740992.0
@@ -68,7 +68,7 @@ def _sample_polygon(corners, count, u, v):
 
 
 @jit
-def irradiance_one(grid, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
+def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
                    em_corners, em_count, em_normal, em_radiance, em_area, samples,
                    view, ks, ns, out_h, out_spec):
     """Direct irradiance at one point, added to ``out_h (3,)``.
@@ -76,6 +76,9 @@ def irradiance_one(grid, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
     Parameters
     ----------
     grid : Grid
+    fan : Fan
+        Scratch of :func:`daskrad.kernels.grid.new_fan` for ``grid``: the shadow rays leave
+        from one origin above the surface, so its own triangles are tested once, not per ray.
     p, n : (3,) float64
         The point and its unit normal (the lit side).
     pa : (3,) float64
@@ -115,6 +118,7 @@ def irradiance_one(grid, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
     o[0] = ox
     o[1] = oy
     o[2] = oz
+    aim_fan(fan, grid, o, n)
     d = np.empty(3)
     # ---- point lights
     for li in range(pl_pos.shape[0]):
@@ -133,7 +137,7 @@ def irradiance_one(grid, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
         if cos <= 0.0:
             continue
         dl = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-        if dl > 2.0 * off and any_hit_one(grid, o, d, off / dl, 1.0 - off / dl):
+        if dl > 2.0 * off and any_hit_fan(grid, fan, o, d, off / dl, 1.0 - off / dl):
             continue
         g = cos / r2
         for c in range(3):
@@ -148,7 +152,7 @@ def irradiance_one(grid, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
         d[0] = -dl_dir[li, 0]
         d[1] = -dl_dir[li, 1]
         d[2] = -dl_dir[li, 2]
-        if any_hit_one(grid, o, d, off, np.inf):
+        if any_hit_fan(grid, fan, o, d, off, np.inf):
             continue
         for c in range(3):
             out_h[c] += dl_irr[li, c] * cos
@@ -193,7 +197,7 @@ def irradiance_one(grid, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
             d[1] = q[1] - oy
             d[2] = q[2] - oz
             dl = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-            if dl > 2.0 * off and any_hit_one(grid, o, d, off / dl, 1.0 - off / dl):
+            if dl > 2.0 * off and any_hit_fan(grid, fan, o, d, off / dl, 1.0 - off / dl):
                 continue
             wvis += w
             if spec:
@@ -235,8 +239,9 @@ def irradiance_points(grid, points, area_points, normals, seeds, off, pl_pos, pl
     spec = np.zeros(3)
     ks = np.zeros(3)
     view = np.zeros(3)
+    fan = new_fan(grid)
     for i in range(npts):
-        irradiance_one(grid, points[i], area_points[i], normals[i], off, seeds[i], pl_pos,
+        irradiance_one(grid, fan, points[i], area_points[i], normals[i], off, seeds[i], pl_pos,
                        pl_int, dl_dir, dl_irr, em_corners, em_count, em_normal, em_radiance,
                        em_area, samples, view, ks, 0.0, out[i], spec)
     return out

@@ -17,7 +17,7 @@ from numba import prange
 
 from daskrad.kernels._jit import jit, jit_parallel
 from daskrad.kernels.direct import hash01
-from daskrad.kernels.grid import any_hit_one, closest_hit_one
+from daskrad.kernels.grid import aim_fan, any_hit_one, closest_hit_fan, new_fan
 from daskrad.kernels.pathtrace import tangent_frame
 
 
@@ -89,17 +89,19 @@ def gather_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_v
     weights = np.empty(n * cap)
     excluded = np.zeros((n, 3))
     slot = np.full(n_vertices, -1, np.int64)   # where a vertex sits in the current row
+    fan = new_fan(grid)     # every ray of a point rises above its tangent plane
     nnz = 0
     for i in range(n):
         nrm = normals[i]
         t, s = tangent_frame(nrm)
         o = points[i] + off * nrm
+        aim_fan(fan, grid, o, nrm)
         row = nnz
         for k in range(ss):
             u = ((k % side) + hash01(seeds[i], 2 * k)) / side
             v = ((k // side) + hash01(seeds[i], 2 * k + 1)) / side
             d = _direction(nrm, t, s, u, v)
-            th, tri, bu, bv = closest_hit_one(grid, o, d, off, np.inf)
+            th, tri, bu, bv = closest_hit_fan(grid, fan, o, d, off, np.inf)
             if tri < 0:
                 continue
             e = tri_element[tri]

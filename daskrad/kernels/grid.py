@@ -21,7 +21,10 @@ Invariants the traversal relies on:
   plane does not hit it.
 
 The single-ray functions (:func:`closest_hit_one`, :func:`any_hit_one`) are ``@jit`` so other
-kernels call them inside their own numba loops; the batch functions wrap them for arrays of
+kernels call them inside their own numba loops; their fan twins (:func:`closest_hit_fan`,
+:func:`any_hit_fan`, one :func:`_walk`) serve the many rays leaving one point of a surface (a
+junction gather, a hit's shadow rays) and skip the triangles lying wholly below that point's
+tangent plane, decided once per point (:class:`Fan`): the same hits, fewer tests; the batch functions wrap them for arrays of
 rays; the ``*_brute`` functions test every triangle and are the reference for tests.
 """
 
@@ -32,7 +35,7 @@ from typing import NamedTuple
 import numpy as np
 
 from daskrad.kernels._jit import jit
-from daskrad.kernels.tolerances import COORD_ROUND, GRID_MARGIN, GRID_PAD, RAY_EPS
+from daskrad.kernels.tolerances import COORD_ROUND, FAN_MARGIN, GRID_MARGIN, GRID_PAD, RAY_EPS
 
 #: Largest number of cells along one axis.
 MAX_DIM = 512
@@ -325,6 +328,83 @@ def _cross_norm2(ax, ay, az, bx, by, bz):
 
 
 # ------------------------------------------------------------------------------------------
+# Fans: many rays from one origin into one half-space.
+
+
+class Fan(NamedTuple):
+    """Rays from one origin ``o`` above a surface, all rising above the plane through ``o``
+    with unit normal ``normal`` (a vertex's gather, a hit's shadow rays): no such ray can hit a
+    triangle lying wholly below that plane, yet the cells near ``o`` hold the surface's own
+    triangles, and every ray tested them (the Cornell box's junction gather: 35 of 62 tests a
+    ray). A fan decides that once per triangle and origin, the first time a ray meets it.
+
+    stamp : (T,) int64
+        ``2 · key + 1``: triangle wholly below the current fan's plane; ``2 · key``: not;
+        anything else: not decided yet for this fan.
+    key : (1,) int64
+        The current fan's number (``-1``: no fan); :func:`aim_fan` moves it on, so one stamp
+        array serves every origin of a kernel call without clearing.
+    origin, normal : (3,) float64
+        The current fan's origin and plane normal.
+    margin : (1,) float64
+        How far below the plane a triangle's highest corner must lie (:func:`aim_fan`).
+    """
+
+    stamp: np.ndarray
+    key: np.ndarray
+    origin: np.ndarray
+    normal: np.ndarray
+    margin: np.ndarray
+
+
+@jit
+def new_fan(grid):
+    """A :class:`Fan` for ``grid``'s triangles, aimed nowhere yet. It is scratch: one per
+    thread, aimed (:func:`aim_fan`) at each origin in turn."""
+    return Fan(np.full(grid.triangles.shape[0], -1, np.int64), np.full(1, -1, np.int64),
+               np.zeros(3), np.zeros(3), np.zeros(1))
+
+
+#: A fan that culls nothing (``key`` -1): the plain walk of :func:`closest_hit_one`.
+NO_FAN = Fan(np.full(0, -1, np.int64), np.full(1, -1, np.int64), np.zeros(3), np.zeros(3),
+             np.zeros(1))
+
+
+@jit
+def aim_fan(fan, grid, o, n):
+    """Make ``fan`` the rays from ``o (3,)`` that rise above the plane through it with unit
+    normal ``n (3,)``. The cull is exact: a triangle is skipped only when its highest corner
+    lies more than ``FAN_MARGIN`` edge tolerances (plus the rounding of the coordinates)
+    below the plane, so not even the ray–triangle test's edge tolerance (``grid.eps``) brings
+    a point of it within reach of a ray ``o + t d`` with ``d · n > 0`` and ``t >= 0``, which
+    never goes below the plane."""
+    fan.key[0] += 1
+    for a in range(3):
+        fan.origin[a] = o[a]
+        fan.normal[a] = n[a]
+    fan.margin[0] = (FAN_MARGIN * grid.eps
+                     + COORD_ROUND * (abs(o[0]) + abs(o[1]) + abs(o[2])))
+
+
+@jit
+def _below(fan, tris, tri, key):
+    """Whether triangle ``tri`` lies wholly below ``fan``'s plane (decided once per fan)."""
+    s = fan.stamp[tri]
+    if s == 2 * key + 1:
+        return True
+    if s == 2 * key:
+        return False
+    o, n = fan.origin, fan.normal
+    top = -np.inf
+    for a in range(3):
+        top = max(top, (tris[tri, a, 0] - o[0]) * n[0] + (tris[tri, a, 1] - o[1]) * n[1]
+                  + (tris[tri, a, 2] - o[2]) * n[2])
+    below = top < -fan.margin[0]
+    fan.stamp[tri] = 2 * key + (1 if below else 0)
+    return below
+
+
+# ------------------------------------------------------------------------------------------
 # Traversal.
 
 
@@ -366,8 +446,11 @@ def _next_t(o, d, i, plane_off, origin, cell):
 
 
 @jit
-def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode):
-    """Walk the grid: closest hit ``(t, tri, u, v)``, or the first hit found if ``any_mode``."""
+def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode, fan):
+    """Walk the grid: closest hit ``(t, tri, u, v)``, or the first hit found if ``any_mode``.
+
+    ``fan``: a :class:`Fan` whose triangles wholly below its plane are skipped (when the ray
+    rises above that plane), or :data:`NO_FAN`."""
     miss = (np.inf, -1, 0.0, 0.0)
     if not (np.isfinite(ox) and np.isfinite(oy) and np.isfinite(oz) and np.isfinite(dx)
             and np.isfinite(dy) and np.isfinite(dz)):
@@ -388,6 +471,10 @@ def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode):
     k, sk, ok = _start(oz, dz, t0, origin[2], cell[2], nz)
     cell_start, cell_items, tris, eps = grid.cell_start, grid.cell_items, grid.triangles, grid.eps
     best_t, best_tri, best_u, best_v = tmax, -1, 0.0, 0.0
+    # the fan's cull holds for a ray that rises above its plane, from t >= 0 on
+    key = fan.key[0]
+    cull = key >= 0 and tmin >= 0.0 and (dx * fan.normal[0] + dy * fan.normal[1]
+                                         + dz * fan.normal[2]) > 0.0
     tx = _next_t(ox, dx, i, oi, origin[0], cell[0])
     ty = _next_t(oy, dy, j, oj, origin[1], cell[1])
     tz = _next_t(oz, dz, k, ok, origin[2], cell[2])
@@ -396,6 +483,8 @@ def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode):
         c = (k * ny + j) * nx + i
         for m in range(cell_start[c], cell_start[c + 1]):
             tri = cell_items[m]
+            if cull and _below(fan, tris, tri, key):
+                continue
             hit, t, u, v = _intersect(tris, tri, ox, oy, oz, dx, dy, dz, tmin, best_t, eps)
             if hit:
                 if any_mode:
@@ -432,13 +521,26 @@ def closest_hit_one(grid, o, d, tmin, tmax):
     o, d : (3,) float64; ``d`` need not be unit (``t`` is in units of ``|d|``). On a miss
     ``t`` is inf and ``tri`` is -1. ``P = (1 - u - v) V0 + u V1 + v V2``.
     """
-    return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, False)
+    return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, False, NO_FAN)
 
 
 @jit
 def any_hit_one(grid, o, d, tmin, tmax):
     """Whether the ray ``o + t d`` hits any triangle with ``tmin < t < tmax`` (shadow ray)."""
-    return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, True)[1] >= 0
+    return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, True, NO_FAN)[1] >= 0
+
+
+@jit
+def closest_hit_fan(grid, fan, o, d, tmin, tmax):
+    """:func:`closest_hit_one` for a ray of ``fan`` (:func:`aim_fan` at ``o``): the same
+    answer, without testing the triangles it has found wholly below its plane."""
+    return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, False, fan)
+
+
+@jit
+def any_hit_fan(grid, fan, o, d, tmin, tmax):
+    """:func:`any_hit_one` for a ray of ``fan`` (:func:`aim_fan` at ``o``)."""
+    return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, True, fan)[1] >= 0
 
 
 @jit

@@ -19,6 +19,7 @@ import numpy as np
 
 from daskrad.kernels._jit import jit
 from daskrad.kernels.direct import irradiance_one
+from daskrad.kernels.grid import new_fan
 
 
 @jit
@@ -47,8 +48,9 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
     n = points.shape[0]
     H = np.zeros((n, 3))
     S = np.zeros((n, 3))
+    fan = new_fan(grid)
     for i in range(n):
-        irradiance_one(grid, points[i], points[i], normals[i], off, seeds[i], pl_pos, pl_int,
+        irradiance_one(grid, fan, points[i], points[i], normals[i], off, seeds[i], pl_pos, pl_int,
                        dl_dir, dl_irr, em_corners, em_count, em_normal, em_radiance, em_area,
                        samples, views[i], ks[i], ns[i], H[i], S[i])
     return H, S

@@ -29,6 +29,13 @@ DEPTH_TIE = 1e-9
 #: the default ``rel_eps`` of :func:`daskrad.kernels.grid.build_grid`.
 RAY_EPS = 1e-12
 
+#: A fan of rays (:class:`daskrad.kernels.grid.Fan`) skips a triangle whose highest corner lies
+#: more than this many edge tolerances (``RAY_EPS · diag``) below the plane the rays rise
+#: from: far beyond the edge tolerance and the round-off of the heights, far below the rays'
+#: offset from their surface (``RAY_OFFSET``, 10⁵ edge tolerances), whose own triangles are
+#: the ones skipped.
+FAN_MARGIN = 1000.0
+
 #: The voxel grid's box is the scene's box padded by this fraction of the scene diagonal on every
 #: side: a flat scene (zero extent on an axis) then still has a box of positive volume, and no
 #: vertex lies on the box's boundary.
