@@ -24,8 +24,9 @@ The single-ray functions (:func:`closest_hit_one`, :func:`any_hit_one`) are ``@j
 kernels call them inside their own numba loops; their fan twins (:func:`closest_hit_fan`,
 :func:`any_hit_fan`, one :func:`_walk`) serve the many rays leaving one point of a surface (a
 junction gather, a hit's shadow rays) and skip the triangles lying wholly below that point's
-tangent plane, decided once per point (:class:`Fan`): the same hits, fewer tests; the batch functions wrap them for arrays of
-rays; the ``*_brute`` functions test every triangle and are the reference for tests.
+tangent plane, decided once per point (:class:`Fan`): the same hits, fewer tests. The batch
+functions wrap them for arrays of rays; the ``*_brute`` functions test every triangle and are
+the reference for tests.
 """
 
 from __future__ import annotations
