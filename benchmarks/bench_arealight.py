@@ -105,7 +105,7 @@ def _measure(name, ctx, n):
     # unoccluded: the window method with an empty grid finds no occluder, V = 1
     lambert = direct.compute(replace(hemi, grid=build_grid(np.zeros((0, 3, 3)))), 0, n)
     total = ref.sum(axis=1)
-    _, work = area_irradiance_stats(
+    _, work, _ = area_irradiance_stats(
         ctx.grid, ctx.faces, ctx.area_points, ctx.normals, ctx.offset,
         ctx.offset * tolerances.HORIZON_EPS / tolerances.RAY_OFFSET, ctx.emitter_corners,
         ctx.emitter_count, ctx.emitter_normal, ctx.emitter_radiance, 4,

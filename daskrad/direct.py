@@ -294,8 +294,12 @@ def with_hierarchy(ctx: DirectContext, h: Hierarchy) -> DirectContext:
                    generation=h.generation)
 
 
-def direct_vertices(ctx: DirectContext, start: int, stop: int) -> np.ndarray:
-    """``(stop − start, 3) float64``: direct irradiance ``H`` at vertices ``start:stop``.
+def vertex_light(ctx: DirectContext, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+    """Direct light at vertices ``start:stop``: ``H (stop − start, 3) float64``, the
+    irradiance, and ``classes (stop − start, M) int8``, what is known of each area light
+    there (:data:`daskrad.kernels.direct.LIGHT_VISIBLE`, ``LIGHT_HIDDEN`` or ``LIGHT_TRACE``;
+    the per-pixel pass skips the shadow rays of a light every corner of an element agrees
+    on, :func:`daskrad.render.light_modes`).
 
     The Dask task ``direct-<generation>-<n>``. Each vertex's value depends only on the context
     and its id (the jitter seed), never on the range it was computed in. Area lights are
@@ -304,7 +308,12 @@ def direct_vertices(ctx: DirectContext, start: int, stop: int) -> np.ndarray:
     return AREA_METHODS[ctx.area_method](ctx, start, stop)
 
 
-def _area_by_rays(ctx: DirectContext, start: int, stop: int) -> np.ndarray:
+def direct_vertices(ctx: DirectContext, start: int, stop: int) -> np.ndarray:
+    """``(stop − start, 3) float64``: the direct irradiance ``H`` of :func:`vertex_light`."""
+    return vertex_light(ctx, start, stop)[0]
+
+
+def _area_by_rays(ctx: DirectContext, start: int, stop: int):
     """Every light by shadow rays; area lights: Lambert × ``samples²`` stratified rays."""
     seeds = np.arange(start, stop, dtype=np.int64)
     return irradiance_points(ctx.grid, ctx.points[start:stop], ctx.area_points[start:stop],
@@ -312,33 +321,35 @@ def _area_by_rays(ctx: DirectContext, start: int, stop: int) -> np.ndarray:
                              ctx.offset, *ctx.light_args, ctx.samples)
 
 
-def _area_by_hemisphere(ctx: DirectContext, start: int, stop: int) -> np.ndarray:
+def _area_by_hemisphere(ctx: DirectContext, start: int, stop: int):
     """Point and directional lights by shadow rays; area lights by the paper's window on the
     hemisphere base (:mod:`daskrad.kernels.arealight`): Lambert × visible pixel fraction."""
     seeds = np.arange(start, stop, dtype=np.int64)
     none3 = np.zeros((0, 3))
-    H = irradiance_points(ctx.grid, ctx.points[start:stop], ctx.area_points[start:stop],
-                          ctx.normals[start:stop], seeds, ctx.offset, ctx.point_position,
-                          ctx.point_intensity, ctx.dir_direction, ctx.dir_irradiance,
-                          np.zeros((0, 4, 3)), np.zeros(0, np.int64), none3, none3,
-                          np.zeros(0), ctx.samples)
+    H, _ = irradiance_points(ctx.grid, ctx.points[start:stop], ctx.area_points[start:stop],
+                             ctx.normals[start:stop], seeds, ctx.offset, ctx.point_position,
+                             ctx.point_intensity, ctx.dir_direction, ctx.dir_irradiance,
+                             np.zeros((0, 4, 3)), np.zeros(0, np.int64), none3, none3,
+                             np.zeros(0), ctx.samples)
+    classes = np.zeros((stop - start, len(ctx.emitter_corners)), np.int8)
     if len(ctx.emitter_corners):
         # The clip height of the hemisphere-base form factor, HORIZON_EPS · diag (the offset
         # is RAY_OFFSET · diag of the same box).
         hz = ctx.offset * (tolerances.HORIZON_EPS / tolerances.RAY_OFFSET)
-        H += area_irradiance(ctx.grid, ctx.faces, ctx.area_points[start:stop],
-                             ctx.normals[start:stop],
-                             float(ctx.offset), float(hz), ctx.emitter_corners,
-                             ctx.emitter_count, ctx.emitter_normal, ctx.emitter_radiance,
-                             int(ctx.area_resolution),
-                             math.radians(tolerances.EDGE_ANGLE_DEG))
-    return H
+        H_area, classes = area_irradiance(
+            ctx.grid, ctx.faces, ctx.area_points[start:stop], ctx.normals[start:stop],
+            float(ctx.offset), float(hz), ctx.emitter_corners, ctx.emitter_count,
+            ctx.emitter_normal, ctx.emitter_radiance, int(ctx.area_resolution),
+            math.radians(tolerances.EDGE_ANGLE_DEG))
+        H += H_area
+    return H, classes
 
 
 #: How area lights are shadowed at vertices, by name (``--area-method``,
 #: ``Settings.area_method``).
 #: Each entry maps ``(ctx, start, stop)`` to the direct irradiance ``(stop − start, 3)`` of every
-#: light at those vertices; point and directional lights are shadow rays in both.
+#: light at those vertices and the area lights' classes there (:func:`vertex_light`); point and
+#: directional lights are shadow rays in both.
 #:
 #: - ``"rays"``: Lambert's unoccluded term × the visible fraction from ``samples²`` stratified,
 #:   jittered shadow rays weighted by ``cos θ cos θ' / r²``.
@@ -380,18 +391,28 @@ def batches(start: int, stop: int, size: int = BATCH_VERTICES) -> list[tuple[int
 
 
 def compute(ctx: DirectContext, start: int, stop: int, executor=None) -> np.ndarray:
-    """Direct irradiance at vertices ``start:stop``, batch by batch.
+    """Direct irradiance at vertices ``start:stop`` (:func:`compute_classes`'s ``H``)."""
+    return compute_classes(ctx, start, stop, executor)[0]
 
-    When ``executor`` has a ``direct(ctx, ranges)`` method (the Dask executor), the batches run
-    there as futures; otherwise in this process. The result is the same bits either way.
+
+def compute_classes(ctx: DirectContext, start: int, stop: int, executor=None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`vertex_light` at vertices ``start:stop``, batch by batch: ``H (n, 3)`` and the
+    area lights' ``classes (n, M) int8``.
+
+    When ``executor`` has a ``direct(ctx, ranges)`` method (the Dask executor, or threads),
+    the batches run there; otherwise in this process. The result is the same bits either way.
     """
     ranges = batches(start, stop)
     run = getattr(executor, "direct", None)
     if run is not None:
         parts = run(ctx, ranges)
     else:
-        parts = [direct_vertices(ctx, a, b) for a, b in ranges]
-    return np.concatenate(parts) if parts else np.zeros((0, 3))
+        parts = [vertex_light(ctx, a, b) for a, b in ranges]
+    if not parts:
+        return np.zeros((0, 3)), np.zeros((0, len(ctx.emitter_corners)), np.int8)
+    return (np.concatenate([H for H, _ in parts]),
+            np.concatenate([c for _, c in parts]))
 
 
 def element_mean(h: Hierarchy, vertex_values: np.ndarray) -> np.ndarray:
@@ -455,6 +476,9 @@ class DirectLight:
         Whether area lights are left to the solve as patches with unshot energy (one-pass)
         instead of gathered here (two-pass, ``Settings.two_pass``).
     seconds : float
+    classes : (V, M) int8 or None
+        What the vertex pass found of each area light (``context``'s emitters) at every
+        vertex: wholly visible, wholly hidden, or neither (:func:`vertex_light`).
     """
 
     mesh: Mesh
@@ -465,6 +489,7 @@ class DirectLight:
     levels: int
     emitters_shot: bool
     seconds: float = 0.0
+    classes: np.ndarray | None = None
 
 
 def light(scene: Scene, mesh: Mesh, settings: Settings, executor=None) -> DirectLight:
@@ -492,12 +517,15 @@ def light(scene: Scene, mesh: Mesh, settings: Settings, executor=None) -> Direct
                        tri_element=mesh.tri_element)
     if not settings.two_pass:  # emitters are shot: gather point and directional lights only
         ctx = without_emitters(ctx)
-    H = compute(ctx, 0, len(h.vertices), executor)
+    H, classes = compute_classes(ctx, 0, len(h.vertices), executor)
+    new_classes = [classes]     # refine keeps H; the classes of new vertices follow in order
     diffuse = scene.materials.diffuse
 
     def evaluate(h2: Hierarchy, start: int, stop: int) -> np.ndarray:
         """H at the new vertices ``start:stop`` of a refined hierarchy."""
-        return compute(with_hierarchy(ctx, h2), start, stop, executor)
+        H2, c2 = compute_classes(with_hierarchy(ctx, h2), start, stop, executor)
+        new_classes.append(c2)
+        return H2
 
     element_size = settings.element_size or default_sizes(scene)[1]
     h, H, tv, levels = refine(
@@ -509,8 +537,11 @@ def light(scene: Scene, mesh: Mesh, settings: Settings, executor=None) -> Direct
     if not np.isfinite(H).all():
         raise SceneError("direct irradiance overflows a float64 (a light's intensity or "
                          "irradiance is too large for the scene's units)", scene.path)
+    classes = np.concatenate(new_classes)
+    if len(classes) != len(H):
+        raise AssertionError("the area lights' classes lost step with the refined vertices")
     mesh = mesh.remeshed(scene, h)
     return DirectLight(mesh=mesh, irradiance=H,
                        reflected=mesh.reflectance * element_mean(h, H), tvertices=tv,
                        context=ctx, levels=levels, emitters_shot=not settings.two_pass,
-                       seconds=time.perf_counter() - t)
+                       seconds=time.perf_counter() - t, classes=classes)

@@ -25,6 +25,7 @@ import numpy as np
 from daskrad import direct, tolerances
 from daskrad.direct import DirectLight, Lights
 from daskrad.errors import SceneError
+from daskrad.kernels.direct import LIGHT_TRACE, LIGHT_VISIBLE
 from daskrad.kernels.grid import Grid, build_grid, closest_hit
 from daskrad.kernels.shade import direct_at_hits
 from daskrad.kernels.unshadowed import unshadowed_elements
@@ -173,6 +174,10 @@ class RenderContext:
     vertex_soft: np.ndarray | None = None
     # the junction gather still to apply for this context's camera (:func:`for_view`)
     junctions: Junctions | None = None
+    # (E, M) int8, per element and area light of ``lights``: whether every corner of the
+    # element sees the light whole, so that its hits cast no shadow ray for it
+    # (:func:`light_modes`); None: every hit traces every light
+    elem_light_mode: np.ndarray | None = None
 
     @property
     def extras(self) -> bool:
@@ -511,7 +516,7 @@ def _radiance(ctx: RenderContext, o: np.ndarray, d: np.ndarray, seeds: np.ndarra
                 ctx.grid, np.ascontiguousarray(p), np.ascontiguousarray(ctx.elem_normal[e]),
                 np.ascontiguousarray(-d[a]), np.ascontiguousarray(seeds[a]),
                 np.zeros((len(a), 3)), np.zeros(len(a)), float(hard.offset), *hard.light_args,
-                int(hard.samples))
+                int(hard.samples), np.zeros((len(a), len(hard.emitter_corners)), np.int8))
             L[a] = (_gouraud(ctx.vertex_soft, ctx.tri_verts[tri[a]], u[a], v[a])
                     + ctx.elem_reflectance[e] * H / math.pi)
             stats["hard"] += int(sel.sum())
@@ -556,11 +561,15 @@ def _direct_at(ctx: RenderContext, lights: Lights, p: np.ndarray, elem: np.ndarr
     theirs can be blocked, so the bits are those of tracing them), the rest through the grid.
     Each hit's value depends on the hit alone, so the split changes nothing but the time."""
     def run(grid, sel):
+        e = elem[sel]
+        modes = (ctx.elem_light_mode[e] if ctx.elem_light_mode is not None
+                 else np.zeros((len(e), len(lights.emitter_corners)), np.int8))
         return direct_at_hits(
-            grid, np.ascontiguousarray(p[sel]), np.ascontiguousarray(ctx.elem_normal[elem[sel]]),
+            grid, np.ascontiguousarray(p[sel]), np.ascontiguousarray(ctx.elem_normal[e]),
             np.ascontiguousarray(views[sel]), np.ascontiguousarray(seeds[sel]),
-            np.ascontiguousarray(ks[sel]), np.ascontiguousarray(ctx.elem_shininess[elem[sel]]),
-            float(lights.offset), *lights.light_args, int(lights.samples))
+            np.ascontiguousarray(ks[sel]), np.ascontiguousarray(ctx.elem_shininess[e]),
+            float(lights.offset), *lights.light_args, int(lights.samples),
+            np.ascontiguousarray(modes))
 
     if ctx.elem_unshadowed is None:
         return run(ctx.grid, slice(None))
@@ -692,7 +701,8 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
         direct_context=light.context if light.irradiance is not None else None,
         tvertices=light.tvertices,
         element_size=settings.element_size or default_sizes(scene)[1])
-    return with_unshadowed(ctx, h)
+    return with_light_modes(with_unshadowed(ctx, h), h.elem_verts, light.classes,
+                            light.tvertices)
 
 
 def vertex_split(light: DirectLight, sol: Solution) -> tuple[np.ndarray, np.ndarray]:
@@ -736,6 +746,55 @@ def with_unshadowed(ctx: RenderContext, h) -> RenderContext:
     if not free.any():
         return ctx
     return replace(ctx, elem_unshadowed=free, open_grid=build_grid(np.zeros((0, 3, 3))))
+
+
+#: Largest ``elements × area lights`` for which the per-pixel pass keeps the lights' modes
+#: (:func:`with_light_modes`, one byte each); beyond it every hit traces every light.
+LIGHT_MODES_MAX = 2**26
+
+
+def with_light_modes(ctx: RenderContext, elem_verts: np.ndarray, classes: np.ndarray | None,
+                     tvertices: TVertices | None = None) -> RenderContext:
+    """``ctx`` with :func:`light_modes` of the vertex pass's ``classes (V, M) int8`` (the
+    lights of ``ctx.lights``), when the per-pixel pass has area lights to evaluate."""
+    lights = ctx.lights
+    if (lights is None or classes is None or not len(lights.emitter_corners)
+            or classes.shape[1] != len(lights.emitter_corners)
+            or len(elem_verts) * classes.shape[1] > LIGHT_MODES_MAX):
+        return ctx
+    return replace(ctx, elem_light_mode=light_modes(elem_verts, classes, tvertices))
+
+
+def light_modes(elem_verts: np.ndarray, classes: np.ndarray,
+                tvertices: TVertices | None = None) -> np.ndarray:
+    """``(E, M) int8``: per element and area light, ``LIGHT_VISIBLE`` when the vertex pass
+    found the light wholly visible from every corner of the element, else ``LIGHT_TRACE``
+    (:mod:`daskrad.kernels.direct`).
+
+    Eq. 9 recomputes the direct light of an element whose corners differ; a light every corner
+    sees whole is not what they differ by, and its hits take Lambert's exact unoccluded term
+    instead of casting its shadow rays. What that misses, a shadow lying wholly inside the
+    element between its corners, the Gouraud image misses on every element whose corners
+    agree. RenderPark's office (192 × 144, 352 shots): the per-pixel tiles 22.0 → 16.5 s of
+    CPU, 88 of 27,648 pixels changed (relative RMS 5.5e-4, at most 9 % in one pixel); the
+    Cornell box's image keeps its bits. A light hidden from every corner is traced still: the
+    office's papers, stacked and lifted off the desk, have corners under one another and lit
+    interiors (taken as hidden: 543 pixels changed, up to 96 %).
+
+    A T-vertex that disagrees with an end of its edge sends both ends' elements back to
+    tracing that light: the coarse element along the edge does not have it as a corner.
+    """
+    cls = np.array(classes, dtype=np.int8, copy=True)
+    tv = tvertices if tvertices is not None else TVertices.empty()
+    if len(tv.vertex):
+        t, a, b = (np.asarray(x, np.int64) for x in (tv.vertex, tv.a, tv.b))
+        bad = (classes[t] != classes[a]) | (classes[t] != classes[b])
+        rows, lights = np.nonzero(bad)
+        cls[a[rows], lights] = LIGHT_TRACE
+        cls[b[rows], lights] = LIGHT_TRACE
+    ev = np.where(elem_verts >= 0, elem_verts, elem_verts[:, :1])
+    visible = (cls[ev] == LIGHT_VISIBLE).all(axis=1)          # (E, M): every corner
+    return np.where(visible, LIGHT_VISIBLE, LIGHT_TRACE).astype(np.int8)
 
 
 @dataclass(frozen=True)

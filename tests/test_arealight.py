@@ -46,7 +46,7 @@ def _area(tris, points, normals, corners, resolution, faces=None):
     grid = build_grid(np.ascontiguousarray(tris))
     faces = no_faces(len(tris)) if faces is None else faces
     return area_irradiance_stats(grid, faces, np.atleast_2d(points), np.atleast_2d(normals),
-                                 OFF, HZ, *_lights(corners), resolution, EDGE)
+                                 OFF, HZ, *_lights(corners), resolution, EDGE)[:2]
 
 
 def _lambert(p, n, corners):
@@ -82,7 +82,7 @@ def test_unoccluded_light_is_lambert_exactly():
     grid = build_grid(tris)
     rays = irradiance_points(grid, pts, pts, np.tile(UP, (4, 1)), np.arange(4), OFF,
                              np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)),
-                             np.zeros((0, 3)), *_lights(LIGHT), np.ones(1) * 4.0, 4)
+                             np.zeros((0, 3)), *_lights(LIGHT), np.ones(1) * 4.0, 4)[0]
     assert np.array_equal(H, rays)
 
 
@@ -372,7 +372,8 @@ def test_early_stop_gives_the_same_bits_as_drawing_every_occluder():
     none = no_faces(len(tris))  # the window method alone
 
     def run(ls, slabs, hint=HINT):
-        return area_irradiance_stats(grid, none, pts, nrm, OFF, HZ, *ls, R, EDGE, slabs, hint)
+        return area_irradiance_stats(grid, none, pts, nrm, OFF, HZ, *ls, R, EDGE, slabs,
+                                     hint)[:2]
 
     H, work = run(lights, SLABS)
     H_ref, work_ref = run(lights, 0)
@@ -417,6 +418,55 @@ def test_early_stop_gives_the_same_bits_as_drawing_every_occluder():
     # changes no bit here: where it proves a light hidden, the 16 × 16 raster finds every
     # light pixel hidden too (it can differ only where the raster lets a pixel through a face
     # that covers the whole light, which this room does not have)
-    H_f, work_f = area_irradiance_stats(grid, faces, pts, nrm, OFF, HZ, *lights, R, EDGE)
+    H_f, work_f, _ = area_irradiance_stats(grid, faces, pts, nrm, OFF, HZ, *lights, R, EDGE)
     assert work_f.sum() < work.sum()
     assert np.array_equal(H_f, H)
+
+
+@pytest.mark.parametrize("method", ["hemisphere", "rays"])
+def test_vertex_classes_say_exactly_which_lights_are_wholly_visible_or_hidden(method):
+    # The fully-hidden scene (a blocker between the floor and a 4-patch emitter): per vertex
+    # and emitter patch, LIGHT_VISIBLE exactly where that patch alone gives π Le F (V = 1),
+    # LIGHT_HIDDEN exactly where it gives 0 with F > 0, LIGHT_TRACE elsewhere (a penumbra,
+    # or F = 0); the classes do not depend on the batching.
+    from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_VISIBLE
+
+    v = np.array([[-1, 0, -1], [-1, 0, 1], [1, 0, 1], [1, 0, -1],
+                  [-0.25, 1, -0.25], [0.25, 1, -0.25], [0.25, 1, 0.25], [-0.25, 1, 0.25],
+                  [-0.3, 0.5, -0.3], [-0.3, 0.5, 0.3], [0.3, 0.5, 0.3], [0.3, 0.5, -0.3]])
+    scene = scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11]]),
+                              [0, 1, 0], diffuse=[[0.5] * 3, [0, 0, 0]],
+                              emission=[[0] * 3, [3.0] * 3])
+    h = build_hierarchy(scene, 0.25, 0.125)
+    tris, _, tri_element = hierarchy_triangles(h)
+    ctx = direct.make_context(scene, h, build_grid(tris), method=method,
+                              tri_element=tri_element)
+    n, M = len(h.vertices), len(ctx.emitter_corners)
+    assert M == 4
+    H, classes = direct.vertex_light(ctx, 0, n)
+    assert classes.shape == (n, M) and classes.dtype == np.int8
+    parts = [direct.vertex_light(ctx, a, b)[1] for a, b in direct.batches(0, n, 29)]
+    assert np.array_equal(np.concatenate(parts), classes)
+    P, N = ctx.area_points, ctx.normals
+    full = np.array([[math.pi * 3.0 * lambert_polygon(*P[i], *N[i], ctx.emitter_corners[m],
+                                                       int(ctx.emitter_count[m]))
+                      if ctx.emitter_normal[m] @ (P[i] - ctx.emitter_corners[m, 0]) > 0 else 0.0
+                      for m in range(M)] for i in range(n)])               # (n, M): π Le F
+    vis, hid, other = (classes == LIGHT_VISIBLE), (classes == LIGHT_HIDDEN), (classes == 0)
+    assert np.all(full[vis | hid] > 0)          # a class is only given to a light with F > 0
+    # where every light with F > 0 has a class, H is the sum of the visible ones' π Le F
+    settled = ~(other & (full > 0)).any(axis=1)
+    np.testing.assert_allclose(H[settled, 0], (full * vis).sum(axis=1)[settled], rtol=1e-12)
+    assert vis.any() and hid.any() and (other & (full > 0)).any()   # every class occurs
+    if method == "hemisphere":
+        # the window settles each light alone: a light's class and part of H ignore the others
+        for m in range(M):
+            one = replace(ctx, **{f: getattr(ctx, f)[m:m + 1] for f in (
+                "emitter_corners", "emitter_count", "emitter_normal", "emitter_radiance",
+                "emitter_area")})
+            Hm, cm = direct.vertex_light(one, 0, n)
+            assert np.array_equal(cm[:, 0], classes[:, m])
+            np.testing.assert_allclose(Hm[vis[:, m], 0], full[vis[:, m], m], rtol=1e-12)
+            assert np.all(Hm[hid[:, m]] == 0.0)
+            pen = other[:, m] & (full[:, m] > 0)
+            assert np.all((Hm[pen, 0] > 0) & (Hm[pen, 0] < full[pen, m] * (1 - 1e-12)))

@@ -172,3 +172,63 @@ def test_sample_ids_are_global_pixel_sample_ids():
                                    fov=40.0, width=10, height=8), slice(2, 4), slice(3, 5), 4)
     assert ids.tolist() == [(r * 10 + c) * 4 + s for r in (2, 3) for c in (3, 4)
                             for s in range(4)]
+
+
+def test_a_light_every_corner_sees_casts_no_shadow_ray_and_keeps_the_bits_where_none_is_blocked():
+    # Hits on a floor under a 2 × 2 emitter with a thin blade in between. Taken as visible
+    # (LIGHT_VISIBLE), a hit gets Lambert's exact unoccluded term: the bits of tracing its rays
+    # wherever none is blocked, and more than the traced value in the blade's shadow (no ray
+    # was cast, so the blade is not seen): the mode is what decides.
+    from daskrad.kernels.direct import LIGHT_TRACE, LIGHT_VISIBLE
+    from daskrad.kernels.grid import build_grid
+    from daskrad.kernels.shade import direct_at_hits
+
+    light = np.array([[-1.0, 2, -1], [1, 2, -1], [1, 2, 1], [-1, 2, 1]])      # faces down
+    blade = np.array([[[-0.02, 1, -3], [0.02, 1, -3], [0.02, 1, 3]],
+                      [[-0.02, 1, -3], [0.02, 1, 3], [-0.02, 1, 3]]])
+    grid = build_grid(np.concatenate([blade, light[[[0, 1, 2], [0, 2, 3]]]]))
+    rng = np.random.default_rng(5)
+    n = 400
+    p = np.column_stack([rng.uniform(-1.5, 1.5, n), np.zeros(n), rng.uniform(-1.5, 1.5, n)])
+    up = np.tile([0.0, 1.0, 0.0], (n, 1))
+    lights = (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)),
+              light[None].copy(), np.array([4], np.int64), np.array([[0.0, -1.0, 0.0]]),
+              np.array([[1.0, 2.0, 3.0]]), np.array([4.0]))
+
+    def run(mode):
+        return direct_at_hits(grid, p, up, up, np.arange(n, dtype=np.int64),
+                              np.zeros((n, 3)), np.zeros(n), 1e-7, *lights, 4,
+                              np.full((n, 1), mode, np.int8))[0]
+
+    traced, taken = run(LIGHT_TRACE), run(LIGHT_VISIBLE)
+    F = np.array([lambert_polygon_at(q) for q in p])
+    np.testing.assert_allclose(taken[:, 0], math.pi * F, rtol=1e-12)   # unoccluded, exact
+    blocked = traced[:, 0] < taken[:, 0]
+    assert blocked.any() and (~blocked).any()
+    assert np.array_equal(traced[~blocked], taken[~blocked])
+
+
+def lambert_polygon_at(q):
+    from daskrad.kernels.lambert import lambert_polygon
+
+    light = np.array([[-1.0, 2, -1], [1, 2, -1], [1, 2, 1], [-1, 2, 1]])
+    return lambert_polygon(q[0], q[1], q[2], 0.0, 1.0, 0.0, light, 4)
+
+
+def test_light_modes_need_every_corner_and_agreeing_t_vertices():
+    from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_TRACE, LIGHT_VISIBLE
+    from daskrad.mesh.refine import TVertices
+
+    V, H, T = LIGHT_VISIBLE, LIGHT_HIDDEN, LIGHT_TRACE
+    # 6 vertices, 2 lights; a quad (0 1 2 3), a triangle (1 4 2) and a quad (4 5 2 1)
+    ev = np.array([[0, 1, 2, 3], [1, 4, 2, -1], [4, 5, 2, 1]], np.int32)
+    classes = np.array([[V, V], [V, H], [V, V], [V, V], [V, H], [T, H]], np.int8)
+    modes = render.light_modes(ev, classes)
+    assert modes.dtype == np.int8
+    # light 0: every corner of the first two sees it; vertex 5 does not, so the third traces.
+    # light 1: hidden everywhere but never taken as hidden (stacked faces: corners under one
+    # another, interior lit), and one visible corner is not every corner
+    assert modes.tolist() == [[V, T], [V, T], [T, T]]
+    # a T-vertex (5) on the quad's edge 0-3 that disagrees on light 0 sends its ends back
+    tv = TVertices(np.array([5]), np.array([0]), np.array([3]))
+    assert render.light_modes(ev, classes, tv).tolist() == [[T, T], [V, T], [T, T]]

@@ -298,7 +298,7 @@ class DaskExecutor:
             [(rows.start, rows.stop, cols.start, cols.stop) for rows, cols in tiles],
             lambda n, item, token: f"tile-{generation}-{n}", "rendering")
 
-    def direct(self, ctx, ranges: list[tuple[int, int]]) -> list[np.ndarray]:
+    def direct(self, ctx, ranges: list[tuple[int, int]]) -> list[tuple]:
         """Direct light at vertex ranges as ``direct-<generation>-<n>`` futures, in order."""
         generation = int(getattr(ctx, "generation", 0))
         return self._context_tasks(

@@ -10,8 +10,8 @@ Both executors expose the same calls, so the pipeline is written once:
   (or not at all: a hint);
 - ``tiles(render_ctx, tiles)`` → list of ``(tile image, counts)`` of
   :func:`daskrad.render.render_tile_stats`;
-- ``direct(ctx, ranges)`` → list of direct irradiances of
-  :func:`daskrad.direct.direct_vertices`, one per vertex range, in order;
+- ``direct(ctx, ranges)`` → list of ``(H, classes)`` of
+  :func:`daskrad.direct.vertex_light`, one per vertex range, in order;
 - ``gather(gather_ctx, ranges)`` → list of the junction gather's operator rows
   (:func:`daskrad.render.gather_vertices`), one per range of junction vertices, in order;
 - ``memory()`` → peak memory of the client and of every worker, and the row caches' use;
@@ -137,9 +137,9 @@ class InProcess:
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[tuple[np.ndarray, dict]]:
         return self._map(lambda t: render.render_tile_stats(ctx, t[0], t[1]), tiles)
 
-    def direct(self, ctx, ranges: list[tuple[int, int]]) -> list[np.ndarray]:
-        """Direct irradiance at the vertex ranges (:func:`daskrad.direct.direct_vertices`)."""
-        return self._map(lambda r: direct.direct_vertices(ctx, r[0], r[1]), ranges)
+    def direct(self, ctx, ranges: list[tuple[int, int]]) -> list[tuple]:
+        """Direct light at the vertex ranges (:func:`daskrad.direct.vertex_light`)."""
+        return self._map(lambda r: direct.vertex_light(ctx, r[0], r[1]), ranges)
 
     def gather(self, ctx: render.GatherContext, ranges: list[tuple[int, int]]
                ) -> list[render.GatherOperator]:

@@ -157,11 +157,11 @@ def tile_task(path: str, generation: int, token: str, r0: int, r1: int, c0: int,
     return render.render_tile_stats(ctx, slice(r0, r1), slice(c0, c1))
 
 
-def direct_task(path: str, generation: int, token: str, start: int, stop: int) -> np.ndarray:
-    """Direct irradiance at vertices ``[start, stop)`` (:func:`daskrad.direct.direct_vertices`)."""
+def direct_task(path: str, generation: int, token: str, start: int, stop: int) -> tuple:
+    """Direct light at vertices ``[start, stop)`` (:func:`daskrad.direct.vertex_light`)."""
     from daskrad import direct
 
-    return direct.direct_vertices(context(path, "direct", generation, token), start, stop)
+    return direct.vertex_light(context(path, "direct", generation, token), start, stop)
 
 
 def gather_task(path: str, generation: int, token: str, start: int, stop: int

@@ -69,6 +69,7 @@ from __future__ import annotations
 import numpy as np
 
 from daskrad.kernels._jit import jit
+from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_VISIBLE
 from daskrad.kernels.faces import face_hides
 from daskrad.kernels.geometry import lex_less, orthonormal_basis
 from daskrad.kernels.grid import any_hit_one
@@ -776,10 +777,15 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
     work : (n,) int64
         Candidate occluders found per point before each light's ``V`` was settled (summed over
         lights; 0: no candidate, no raster at all; 1 for a light one face hides).
+    classes : (n, M) int8
+        Each light's class at each point: ``LIGHT_VISIBLE`` (``F > 0``, ``V = 1``),
+        ``LIGHT_HIDDEN`` (``F > 0``, ``V = 0``) or ``LIGHT_TRACE``
+        (:data:`daskrad.kernels.direct.LIGHT_TRACE`: neither).
     """
     npts = points.shape[0]
     out = np.zeros((npts, 3))
     work = np.zeros(npts, dtype=np.int64)
+    classes = np.zeros((npts, em_corners.shape[0]), dtype=np.int8)
     r = resolution
     n_tri = grid.triangles.shape[0]
     stamp = np.full(n_tri, -1, dtype=np.int64)
@@ -828,6 +834,7 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
             if face_hides(grid, faces, p[0] + off * n[0], p[1] + off * n[1],
                           p[2] + off * n[2], n, em_corners[m], cntm, en, off, hz):
                 work[i] += 1        # one occluder, and V = 0 exactly
+                classes[i, m] = LIGHT_HIDDEN
                 continue
             vis, n_c = visible_fraction(grid, p, n, em_corners[m], cntm, en, off, hz, r,
                                         cos_thr, tab, planes, stamp, sid, cand, lx, ly, lz,
@@ -838,15 +845,21 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
             if hint > 0 and vis == 0.0 and hid[hid.shape[0] - 1] > 0:
                 hints[m, :] = hid
             work[i] += n_c
+            if vis == 1.0:
+                classes[i, m] = LIGHT_VISIBLE
+            elif vis == 0.0:
+                classes[i, m] = LIGHT_HIDDEN
             for c in range(3):
                 out[i, c] += np.pi * em_radiance[m, c] * F * vis
-    return out, work
+    return out, work, classes
 
 
 @jit
 def area_irradiance(grid, faces, points, normals, off, hz, em_corners, em_count, em_normal,
                     em_radiance, resolution, edge_angle):
-    """``(n, 3) float64``: :func:`area_irradiance_stats` without the work counts."""
-    return area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_count,
-                                 em_normal, em_radiance, resolution, edge_angle,
-                                 SLABS)[0]
+    """``H (n, 3) float64`` and ``classes (n, M) int8``: :func:`area_irradiance_stats`
+    without the work counts."""
+    H, _, classes = area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners,
+                                          em_count, em_normal, em_radiance, resolution,
+                                          edge_angle, SLABS)
+    return H, classes

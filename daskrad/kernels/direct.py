@@ -38,6 +38,16 @@ from daskrad.kernels.lambert import lambert_polygon
 
 _INV_2_53 = 1.0 / 9007199254740992.0
 
+#: What is known of an area light at a point (``int8`` codes). As a vertex's class: the
+#: light's form factor is positive and it is wholly visible (``LIGHT_VISIBLE``) or wholly
+#: hidden (``LIGHT_HIDDEN``), exactly as the vertex pass computed it; ``LIGHT_TRACE``: neither
+#: (a penumbra, or the light below the vertex's horizon). As a mode of the per-pixel pass
+#: (:func:`irradiance_one`'s ``modes``): take the light as visible (Lambert's exact unoccluded
+#: term, no shadow ray) or trace its shadow rays (:func:`daskrad.render.light_modes`).
+LIGHT_TRACE = 0
+LIGHT_VISIBLE = 1
+LIGHT_HIDDEN = 2
+
 
 @jit
 def hash01(seed, k):
@@ -70,7 +80,7 @@ def _sample_polygon(corners, count, u, v):
 @jit
 def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
                    em_corners, em_count, em_normal, em_radiance, em_area, samples,
-                   view, ks, ns, out_h, out_spec):
+                   view, ks, ns, modes, out_h, out_spec, out_class):
     """Direct irradiance at one point, added to ``out_h (3,)``.
 
     Parameters
@@ -102,9 +112,17 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
         Unit direction from ``p`` to the eye, for the specular term.
     ks : (3,) float64, ns : float
         Phong ``Ks`` and ``Ns``; when ``ks`` is all 0 no specular work is done.
+    modes : (M,) int8
+        Per area light: ``LIGHT_TRACE`` (shadow rays) or ``LIGHT_VISIBLE`` (taken as wholly
+        visible: the rays are not cast, so ``V = 1``; the same bits as tracing them where no
+        ray would have been blocked).
     out_spec : (3,) float64
         Receives the Phong radiance ``Ks (Ns+2)/(2π) max(0, r·v)^Ns dH`` summed over lights
         (``r`` the light direction mirrored about ``n``).
+    out_class : (M,) int8
+        Receives each area light's class at the point: ``LIGHT_VISIBLE`` when ``F > 0`` and
+        no shadow ray was blocked, ``LIGHT_HIDDEN`` when ``F > 0`` and every ray was,
+        ``LIGHT_TRACE`` otherwise.
     """
     spec = ks[0] > 0.0 or ks[1] > 0.0 or ks[2] > 0.0
     norm_spec = (ns + 2.0) / (2.0 * np.pi)
@@ -165,6 +183,8 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
     ss = samples * samples
     inv_s = 1.0 / samples
     for m in range(em_corners.shape[0]):
+        out_class[m] = LIGHT_TRACE
+        trace = modes[m] != LIGHT_VISIBLE
         cnt = em_count[m]
         en = em_normal[m]
         # one-sided emitter: p must lie strictly on its emitting side
@@ -197,7 +217,8 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
             d[1] = q[1] - oy
             d[2] = q[2] - oz
             dl = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-            if dl > 2.0 * off and any_hit_fan(grid, fan, o, d, off / dl, 1.0 - off / dl):
+            if trace and dl > 2.0 * off and any_hit_fan(grid, fan, o, d, off / dl,
+                                                         1.0 - off / dl):
                 continue
             wvis += w
             if spec:
@@ -208,6 +229,10 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
                        out_spec)
         if wsum <= 0.0:
             continue
+        if wvis == wsum:
+            out_class[m] = LIGHT_VISIBLE
+        elif wvis == 0.0:
+            out_class[m] = LIGHT_HIDDEN
         vis = wvis / wsum
         for c in range(3):
             out_h[c] += np.pi * em_radiance[m, c] * F * vis
@@ -231,17 +256,21 @@ def _phong(n, lx, ly, lz, view, ks, ns, norm_spec, g, power, out_spec):
 @jit
 def irradiance_points(grid, points, area_points, normals, seeds, off, pl_pos, pl_int, dl_dir,
                       dl_irr, em_corners, em_count, em_normal, em_radiance, em_area, samples):
-    """Direct irradiance ``(n, 3) float64`` at ``points (n, 3)`` with unit ``normals (n, 3)``;
-    area lights are evaluated at ``area_points (n, 3)``; ``seeds (n,) int64`` jitter the
-    area-light samples (see :func:`irradiance_one`)."""
+    """Direct irradiance ``H (n, 3) float64`` at ``points (n, 3)`` with unit ``normals (n, 3)``,
+    and each area light's class there, ``(n, M) int8`` (:func:`irradiance_one`'s
+    ``out_class``); area lights are evaluated at ``area_points (n, 3)``; ``seeds (n,) int64``
+    jitter the area-light samples (see :func:`irradiance_one`)."""
     npts = points.shape[0]
+    n_em = em_corners.shape[0]
     out = np.zeros((npts, 3))
+    classes = np.zeros((npts, n_em), np.int8)
     spec = np.zeros(3)
     ks = np.zeros(3)
     view = np.zeros(3)
+    modes = np.full(n_em, LIGHT_TRACE, np.int8)
     fan = new_fan(grid)
     for i in range(npts):
         irradiance_one(grid, fan, points[i], area_points[i], normals[i], off, seeds[i], pl_pos,
                        pl_int, dl_dir, dl_irr, em_corners, em_count, em_normal, em_radiance,
-                       em_area, samples, view, ks, 0.0, out[i], spec)
-    return out
+                       em_area, samples, view, ks, 0.0, modes, out[i], spec, classes[i])
+    return out, classes

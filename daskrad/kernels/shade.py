@@ -24,7 +24,8 @@ from daskrad.kernels.grid import new_fan
 
 @jit
 def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_int, dl_dir,
-                   dl_irr, em_corners, em_count, em_normal, em_radiance, em_area, samples):
+                   dl_irr, em_corners, em_count, em_normal, em_radiance, em_area, samples,
+                   modes):
     """Direct irradiance and Phong radiance at ray hits.
 
     Parameters
@@ -41,6 +42,9 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
         Shadow-ray offset, an absolute length.
     pl_pos ... em_area, samples
         The lights, as :func:`daskrad.kernels.direct.irradiance_one` takes them.
+    modes : (n, M) int8
+        Per hit and area light, trace its shadow rays or take it as wholly visible
+        (:data:`daskrad.kernels.direct.LIGHT_TRACE`, ``LIGHT_VISIBLE``).
 
     Returns ``H (n, 3)``, the irradiance (W per unit area), and ``S (n, 3)``, the Phong
     radiance ``Σ_lights Ks (Ns+2)/(2π) max(0, r·v)^Ns dH``.
@@ -49,8 +53,9 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
     H = np.zeros((n, 3))
     S = np.zeros((n, 3))
     fan = new_fan(grid)
+    classes = np.zeros(em_corners.shape[0], np.int8)
     for i in range(n):
         irradiance_one(grid, fan, points[i], points[i], normals[i], off, seeds[i], pl_pos, pl_int,
                        dl_dir, dl_irr, em_corners, em_count, em_normal, em_radiance, em_area,
-                       samples, views[i], ks[i], ns[i], H[i], S[i])
+                       samples, views[i], ks[i], ns[i], modes[i], H[i], S[i], classes)
     return H, S

@@ -1,0 +1,176 @@
+"""The render's ray work, each cut against what it replaced, in one process (issue 12, item 3).
+
+For each scene (the bundled Cornell box; ``--scene PATH`` with ``--config TOML`` adds one, e.g.
+RenderPark's office, which is not in the repository), solved with the defaults (``--shots``
+caps the solve) at ``--size`` pixels, two comparisons, alternated ``--repeat`` times (medians):
+
+- **fans** (:class:`daskrad.kernels.grid.Fan`): the junction gather's operator rows, the rays
+  from each vertex skipping the triangles below its tangent plane, against the plain walk
+  (:func:`daskrad.kernels.grid.closest_hit_one`, the same kernel otherwise). Both give the
+  same rows (checked bit for bit).
+- **light modes** (:func:`daskrad.render.light_modes`): the per-pixel pass's tiles (the gather
+  applied once beforehand) when a light every corner of an element sees is taken as visible
+  without shadow rays, against tracing every light at every hit. The images are compared:
+  pixels that changed, the relative RMS of the change and the largest change relative to
+  the pixel.
+
+Seconds are wall time in this process, one thread. ``python -m benchmarks.bench_perpixel
+[--scene PATH --config TOML] [--size W H] [--shots N] [--repeat N]``; writes
+``benchmarks/results/perpixel.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from daskrad import direct, render, solve
+from daskrad.distributed.executor import InProcess
+from daskrad.kernels.direct import hash01
+from daskrad.kernels.gather import _direction
+from daskrad.kernels.grid import aim_fan, closest_hit_fan, closest_hit_one, new_fan
+from daskrad.kernels.pathtrace import tangent_frame
+from daskrad.preprocess import preprocess
+from daskrad.scene import load_scene
+from daskrad.settings import Settings
+
+RESULTS = Path(__file__).parent / "results"
+CORNELL = Path(__file__).parent.parent / "scenes" / "cornell_box.obj"
+
+
+@njit(cache=True)
+def _gather_hits(grid, points, normals, seeds, off, side, fanned):
+    """``(t, tri)`` of the gather's rays (:func:`daskrad.kernels.gather.gather_operator`'s
+    directions), through a fan or the plain walk."""
+    n, ss = points.shape[0], side * side
+    t_out = np.empty(n * ss)
+    tri_out = np.empty(n * ss, np.int64)
+    fan = new_fan(grid)
+    for i in range(n):
+        nrm = normals[i]
+        t, s = tangent_frame(nrm)
+        o = points[i] + off * nrm
+        aim_fan(fan, grid, o, nrm)
+        for k in range(ss):
+            u = ((k % side) + hash01(seeds[i], 2 * k)) / side
+            v = ((k // side) + hash01(seeds[i], 2 * k + 1)) / side
+            d = _direction(nrm, t, s, u, v)
+            if fanned:
+                th, tri, _, _ = closest_hit_fan(grid, fan, o, d, off, np.inf)
+            else:
+                th, tri, _, _ = closest_hit_one(grid, o, d, off, np.inf)
+            t_out[i * ss + k] = th
+            tri_out[i * ss + k] = tri
+    return t_out, tri_out
+
+
+def _gather_context(ctx: render.RenderContext) -> render.GatherContext:
+    """The junction gather's rays of ``ctx`` (every gathered vertex), as the render casts
+    them."""
+    seen = {}
+    original = render.gather_vertices
+
+    def capture(gctx, start, stop):
+        seen["gctx"] = gctx
+        return original(gctx, start, stop)
+
+    render.gather_vertices = capture
+    try:
+        render.for_view(ctx)
+    finally:
+        render.gather_vertices = original
+    return seen["gctx"]
+
+
+def measure(path: Path, config: Path | None, size: tuple[int, int], shots: int,
+            repeat: int) -> dict:
+    settings = Settings(workers=0, width=size[0], height=size[1], max_iterations=shots)
+    scene = load_scene(path, config)
+    ex = InProcess(threads=1)
+    light = direct.light(scene, preprocess(scene, settings), settings, ex)
+    sol = solve.radiosity(light, settings, ex)
+    ctx = render.context(scene, light, sol, settings, render.camera(scene, settings))
+    g = _gather_context(ctx)
+    args = (g.grid, g.points, g.normals, g.seeds, float(g.offset), int(g.side))
+    _gather_hits(*args, True)                   # compile (or load) before timing
+    times = {"plain": [], "fan": []}
+    hits = {}
+    for _ in range(repeat):
+        for name, fanned in (("plain", False), ("fan", True)):
+            t = time.perf_counter()
+            hits[name] = _gather_hits(*args, fanned)
+            times[name].append(time.perf_counter() - t)
+    same_rays = all(np.array_equal(a, b) for a, b in zip(hits["plain"], hits["fan"],
+                                                         strict=True))
+    viewed = render.for_view(ctx)
+    tracing = replace(viewed, elem_light_mode=None)
+    images = {}
+    tiles = {"trace": [], "modes": []}
+    for _ in range(repeat):
+        for name, c in (("trace", tracing), ("modes", viewed)):
+            t = time.perf_counter()
+            images[name] = render.render(c)
+            tiles[name].append(time.perf_counter() - t)
+    a, b = images["trace"], images["modes"]
+    diff = np.abs(a - b).max(axis=2)
+    modes = viewed.elem_light_mode
+    pp = viewed.elem_perpixel if viewed.elem_perpixel is not None else np.zeros(0, bool)
+    return {
+        "scene": path.name, "elements": int(len(ctx.elem_normal)),
+        "gathered_vertices": int(len(g.points)), "gather_rays": int(len(g.points) * g.side**2),
+        "gather_plain_s": float(np.median(times["plain"])),
+        "gather_fan_s": float(np.median(times["fan"])),
+        "gather_speedup": float(np.median(times["plain"]) / np.median(times["fan"])),
+        "gather_same_hits": bool(same_rays),
+        "perpixel_elements": int(pp.sum()),
+        "perpixel_light_pairs": int(modes[pp].size) if modes is not None else 0,
+        "perpixel_pairs_taken_visible": int((modes[pp] == 1).sum()) if modes is not None else 0,
+        "tiles_trace_s": float(np.median(tiles["trace"])),
+        "tiles_modes_s": float(np.median(tiles["modes"])),
+        "tiles_speedup": float(np.median(tiles["trace"]) / np.median(tiles["modes"])),
+        "pixels": int(diff.size), "pixels_changed": int((diff > 0).sum()),
+        "change_relative_rms": float(np.sqrt(((a - b) ** 2).mean()) / math.sqrt((a**2).mean())),
+        "change_largest_relative": float((diff / np.maximum(a.max(axis=2), 1e-300)).max()),
+    }
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_perpixel")
+    parser.add_argument("--scene", type=Path, action="append", default=[])
+    parser.add_argument("--config", type=Path, action="append", default=[],
+                        help="a TOML config (camera) per --scene, in order")
+    parser.add_argument("--size", type=int, nargs=2, default=(192, 144))
+    parser.add_argument("--shots", type=int, default=352)
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args([] if argv is None else argv)
+    configs = args.config + [None] * (len(args.scene) - len(args.config))
+    rows = [measure(CORNELL, None, tuple(args.size), args.shots, args.repeat)]
+    rows += [measure(p, c, tuple(args.size), args.shots, args.repeat)
+             for p, c in zip(args.scene, configs, strict=True)]
+    print(f"{'scene':<18}{'gather rays':>12}{'plain':>8}{'fan':>7}{'x':>6}  "
+          f"{'pp pairs':>9}{'visible':>8}{'trace':>8}{'modes':>7}{'x':>6}"
+          f"{'changed':>9}{'rel RMS':>9}{'largest':>9}")
+    for r in rows:
+        print(f"{r['scene']:<18}{r['gather_rays']:>12,}{r['gather_plain_s']:>8.2f}"
+              f"{r['gather_fan_s']:>7.2f}{r['gather_speedup']:>6.2f}  "
+              f"{r['perpixel_light_pairs']:>9,}{r['perpixel_pairs_taken_visible']:>8,}"
+              f"{r['tiles_trace_s']:>8.2f}{r['tiles_modes_s']:>7.2f}{r['tiles_speedup']:>6.2f}"
+              f"{r['pixels_changed']:>9,}{r['change_relative_rms']:>9.1e}"
+              f"{r['change_largest_relative']:>9.1e}")
+        if not r["gather_same_hits"]:
+            print(f"  {r['scene']}: the fan's gather hits differ from the plain walk's!")
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "perpixel.json").write_text(json.dumps(rows, indent=2) + "\n")
+    return {"perpixel": rows}
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
