@@ -47,6 +47,12 @@ AREA_SAMPLES = Settings.area_samples
 #: ``benchmarks/bench_arealight.py`` (see :data:`AREA_METHODS`).
 AREA_RESOLUTION = 32
 
+#: Largest ``vertices × area lights`` (bytes, one a class) for which the direct pass keeps
+#: each light's class at each vertex (:class:`DirectLight`'s ``classes``, what lets the
+#: per-pixel pass skip the shadow rays of lights an element's corners all see), judged on the
+#: mesh before subdivision: a scene beyond it traces every light at every hit.
+CLASSES_MAX = 2**26
+
 #: Vertices per ``direct-<generation>-<n>`` task: ~2,000 vertices × (lights + 16 rays per
 #: emitting patch) is tens of milliseconds, well above Dask's ~2 ms per task.
 BATCH_VERTICES = 2048
@@ -113,6 +119,9 @@ class DirectContext(LightArrays):
         Window raster side of the ``"hemisphere"`` area method.
     generation : int
         The hierarchy generation the vertices belong to (names the Dask tasks).
+    keep_classes : bool
+        Whether :func:`vertex_light` returns the area lights' classes (``(n, M)``) or none
+        (``(n, 0)``: a scene with too many vertices × lights to keep them, :data:`CLASSES_MAX`).
     """
 
     grid: Grid
@@ -125,6 +134,7 @@ class DirectContext(LightArrays):
     generation: int = 0
     area_method: str = Settings.area_method
     area_resolution: int = AREA_RESOLUTION
+    keep_classes: bool = True
 
 
 @dataclass(frozen=True)
@@ -305,7 +315,8 @@ def vertex_light(ctx: DirectContext, start: int, stop: int) -> tuple[np.ndarray,
     and its id (the jitter seed), never on the range it was computed in. Area lights are
     shadowed by ``AREA_METHODS[ctx.area_method]``.
     """
-    return AREA_METHODS[ctx.area_method](ctx, start, stop)
+    H, classes = AREA_METHODS[ctx.area_method](ctx, start, stop)
+    return H, (classes if ctx.keep_classes else classes[:, :0])
 
 
 def direct_vertices(ctx: DirectContext, start: int, stop: int) -> np.ndarray:
@@ -410,7 +421,8 @@ def compute_classes(ctx: DirectContext, start: int, stop: int, executor=None
     else:
         parts = [vertex_light(ctx, a, b) for a, b in ranges]
     if not parts:
-        return np.zeros((0, 3)), np.zeros((0, len(ctx.emitter_corners)), np.int8)
+        m = len(ctx.emitter_corners) if ctx.keep_classes else 0
+        return np.zeros((0, 3)), np.zeros((0, m), np.int8)
     return (np.concatenate([H for H, _ in parts]),
             np.concatenate([c for _, c in parts]))
 
@@ -478,7 +490,8 @@ class DirectLight:
     seconds : float
     classes : (V, M) int8 or None
         What the vertex pass found of each area light (``context``'s emitters) at every
-        vertex: wholly visible, wholly hidden, or neither (:func:`vertex_light`).
+        vertex: wholly visible, wholly hidden, or neither (:func:`vertex_light`); ``(V, 0)``
+        beyond :data:`CLASSES_MAX`.
     """
 
     mesh: Mesh
@@ -517,6 +530,8 @@ def light(scene: Scene, mesh: Mesh, settings: Settings, executor=None) -> Direct
                        tri_element=mesh.tri_element)
     if not settings.two_pass:  # emitters are shot: gather point and directional lights only
         ctx = without_emitters(ctx)
+    if len(h.vertices) * len(ctx.emitter_corners) > CLASSES_MAX:
+        ctx = replace(ctx, keep_classes=False)
     H, classes = compute_classes(ctx, 0, len(h.vertices), executor)
     new_classes = [classes]     # refine keeps H; the classes of new vertices follow in order
     diffuse = scene.materials.diffuse

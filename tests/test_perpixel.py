@@ -232,3 +232,25 @@ def test_light_modes_need_every_corner_and_agreeing_t_vertices():
     # a T-vertex (5) on the quad's edge 0-3 that disagrees on light 0 sends its ends back
     tv = TVertices(np.array([5]), np.array([0]), np.array([3]))
     assert render.light_modes(ev, classes, tv).tolist() == [[T, T], [V, T], [T, T]]
+
+
+def test_light_modes_change_no_bit_where_nothing_occludes_and_are_dropped_beyond_their_cap(
+        monkeypatch):
+    # The floor under a small emitter with nothing between: every per-pixel element's corners
+    # see the light whole, so its hits cast no shadow ray, and the image has the bits of
+    # tracing them. With the classes' cap at 0 the vertex pass keeps none, the context has no
+    # modes, and the image is the same.
+    from daskrad import direct
+    from daskrad.kernels.direct import LIGHT_VISIBLE
+
+    scene = _area_scene(24)
+    kw = dict(patch_size=2.0, element_size=0.5, rdiff=0.01, subdivide=0.0)
+    ctx, _ = render_context(scene, **kw)
+    assert ctx.elem_light_mode is not None
+    assert (ctx.elem_light_mode[ctx.elem_perpixel] == LIGHT_VISIBLE).any()
+    image, count = _render(ctx)
+    assert count > 0
+    monkeypatch.setattr(direct, "CLASSES_MAX", 0)
+    capped, _ = render_context(scene, **kw)
+    assert capped.elem_light_mode is None
+    assert np.array_equal(_render(capped)[0], image)

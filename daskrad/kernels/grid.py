@@ -472,10 +472,11 @@ def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode, fan):
     k, sk, ok = _start(oz, dz, t0, origin[2], cell[2], nz)
     cell_start, cell_items, tris, eps = grid.cell_start, grid.cell_items, grid.triangles, grid.eps
     best_t, best_tri, best_u, best_v = tmax, -1, 0.0, 0.0
-    # the fan's cull holds for a ray that rises above its plane, from t >= 0 on
+    # the fan's cull holds for a ray from its origin that rises above its plane, t >= 0
     key = fan.key[0]
-    cull = key >= 0 and tmin >= 0.0 and (dx * fan.normal[0] + dy * fan.normal[1]
-                                         + dz * fan.normal[2]) > 0.0
+    cull = (key >= 0 and tmin >= 0.0 and ox == fan.origin[0] and oy == fan.origin[1]
+            and oz == fan.origin[2]
+            and (dx * fan.normal[0] + dy * fan.normal[1] + dz * fan.normal[2]) > 0.0)
     tx = _next_t(ox, dx, i, oi, origin[0], cell[0])
     ty = _next_t(oy, dy, j, oj, origin[1], cell[1])
     tz = _next_t(oz, dz, k, ok, origin[2], cell[2])
