@@ -58,7 +58,7 @@ def _gather_hits(grid, points, normals, seeds, off, side, fanned):
         nrm = normals[i]
         t, s = tangent_frame(nrm)
         o = points[i] + off * nrm
-        aim_fan(fan, grid, o, nrm)
+        aim_fan(fan, grid, o, nrm, off)
         for k in range(ss):
             u = ((k % side) + hash01(seeds[i], 2 * k)) / side
             v = ((k // side) + hash01(seeds[i], 2 * k + 1)) / side

@@ -7,7 +7,8 @@ its reflected direct light ``ρ · H`` is the radiosity the two-pass start
 (:func:`daskrad.solve.initial_solution` with ``reflected``) puts in ``B`` and in the patches'
 unshot energy, so emitters are never shot again and shooting carries indirect light only.
 
-The unit of work is :func:`direct_vertices` over a vertex range: a pure function of a
+The unit of work is :func:`vertex_light` over a vertex range (``H`` and each area light's
+class at each vertex, which the per-pixel pass reads): a pure function of a
 :class:`DirectContext` and ``(start, stop)``, deterministic per vertex (the area-light jitter is
 seeded by the vertex id), so batches computed by any number of workers give the same bits. The
 Dask layer runs it as ``direct-<generation>-<n>`` futures; in-process, :func:`compute` loops
@@ -316,7 +317,7 @@ def vertex_light(ctx: DirectContext, start: int, stop: int) -> tuple[np.ndarray,
     shadowed by ``AREA_METHODS[ctx.area_method]``.
     """
     H, classes = AREA_METHODS[ctx.area_method](ctx, start, stop)
-    return H, (classes if ctx.keep_classes else classes[:, :0])
+    return H, (classes if ctx.keep_classes else np.zeros((len(H), 0), np.int8))
 
 
 def direct_vertices(ctx: DirectContext, start: int, stop: int) -> np.ndarray:

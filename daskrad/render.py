@@ -141,6 +141,10 @@ class RenderContext:
         The final gather at vertices beside a junction, view-dependent like eq. 9: applied for
         the camera by :func:`for_view` (which every image goes through), so the context a
         store keeps is the solution's, and a new view gathers what it shows.
+    elem_light_mode : (E, M) int8, optional
+        Per element and area light of ``lights``, ``LIGHT_VISIBLE`` where every corner of the
+        element sees the light whole (its hits cast no shadow ray for it), else
+        ``LIGHT_TRACE`` (:func:`light_modes`); ``None``: every hit traces every light.
     """
 
     grid: Grid
@@ -564,6 +568,9 @@ def _direct_at(ctx: RenderContext, lights: Lights, p: np.ndarray, elem: np.ndarr
         e = elem[sel]
         modes = (ctx.elem_light_mode[e] if ctx.elem_light_mode is not None
                  else np.zeros((len(e), len(lights.emitter_corners)), np.int8))
+        if modes.shape != (len(e), len(lights.emitter_corners)):   # numba reads unchecked
+            raise ValueError(f"light modes of shape {modes.shape} for "
+                             f"{len(lights.emitter_corners)} area lights")
         return direct_at_hits(
             grid, np.ascontiguousarray(p[sel]), np.ascontiguousarray(ctx.elem_normal[e]),
             np.ascontiguousarray(views[sel]), np.ascontiguousarray(seeds[sel]),
@@ -793,8 +800,12 @@ def light_modes(elem_verts: np.ndarray, classes: np.ndarray,
         cls[a[rows], lights] = LIGHT_TRACE
         cls[b[rows], lights] = LIGHT_TRACE
     ev = np.where(elem_verts >= 0, elem_verts, elem_verts[:, :1])
-    visible = (cls[ev] == LIGHT_VISIBLE).all(axis=1)          # (E, M): every corner
-    return np.where(visible, LIGHT_VISIBLE, LIGHT_TRACE).astype(np.int8)
+    visible = cls[ev[:, 0]] == LIGHT_VISIBLE                  # (E, M): every corner, in turn
+    for c in range(1, ev.shape[1]):
+        visible &= cls[ev[:, c]] == LIGHT_VISIBLE
+    out = np.full(visible.shape, LIGHT_TRACE, np.int8)
+    out[visible] = LIGHT_VISIBLE
+    return out
 
 
 @dataclass(frozen=True)

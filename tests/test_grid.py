@@ -437,7 +437,9 @@ def test_huge_diagonal_triangle_registers_a_sheet_not_the_whole_box():
 # Fans: many rays from one origin, the surface's own triangles decided once.
 
 
-def _fan_walk():
+def _fan_walk(shift=0.0, tmin=0.0):
+    """A numba loop casting each fan's rays with and without it; the fan is aimed at the
+    origin, the rays leave from the origin moved ``shift`` along the normal, from ``tmin``."""
     from numba import njit
 
     @njit
@@ -452,16 +454,16 @@ def _fan_walk():
         below = np.zeros(n, np.int64)
         fan = G.new_fan(grid)
         for i in range(n):
-            G.aim_fan(fan, grid, origins[i], normals[i])
+            G.aim_fan(fan, grid, origins[i], normals[i], 1e-7)
+            o = origins[i] + shift * normals[i]
             for r in range(k):
-                t, tri, u, v = G.closest_hit_one(grid, origins[i], dirs[i, r], 0.0, np.inf)
+                t, tri, u, v = G.closest_hit_one(grid, o, dirs[i, r], tmin, np.inf)
                 plain[i, r, 0], plain[i, r, 1], plain[i, r, 2], plain[i, r, 3] = t, tri, u, v
-                t, tri, u, v = G.closest_hit_fan(grid, fan, origins[i], dirs[i, r], 0.0,
-                                                 np.inf)
+                t, tri, u, v = G.closest_hit_fan(grid, fan, o, dirs[i, r], tmin, np.inf)
                 fanned[i, r, 0], fanned[i, r, 1], fanned[i, r, 2], fanned[i, r, 3] = \
                     t, tri, u, v
-                any_plain[i, r] = G.any_hit_one(grid, origins[i], dirs[i, r], 0.0, tmax)
-                any_fanned[i, r] = G.any_hit_fan(grid, fan, origins[i], dirs[i, r], 0.0, tmax)
+                any_plain[i, r] = G.any_hit_one(grid, o, dirs[i, r], tmin, tmax)
+                any_fanned[i, r] = G.any_hit_fan(grid, fan, o, dirs[i, r], tmin, tmax)
             below[i] = (fan.stamp == 2 * fan.key[0] + 1).sum()
         return plain, fanned, any_plain, any_fanned, below
 
@@ -512,6 +514,17 @@ def test_fan_gives_the_plain_walks_bits_and_skips_the_surface_below(rng, offset)
     plain, fanned, any_plain, any_fanned, below = _fan_walk()(grid, o, nrm, d, 2.0)
     np.testing.assert_array_equal(fanned, plain)          # t, tri, u, v: the same bits
     np.testing.assert_array_equal(any_fanned, any_plain)
+    # rays the cull does not hold for walk plainly: from another origin than the fan's (a
+    # hair below it), going down, or with tmin < 0
+    shifted = _fan_walk(shift=-2e-7 * diag)(grid, o, nrm, d, 2.0)
+    np.testing.assert_array_equal(shifted[1], shifted[0])
+    np.testing.assert_array_equal(shifted[3], shifted[2])
+    down = _fan_walk()(grid, o, nrm, -d, 2.0)
+    np.testing.assert_array_equal(down[1], down[0])
+    assert (down[0][..., 1] >= 0).any()
+    behind = _fan_walk(tmin=-1.0)(grid, o, nrm, d, 2.0)
+    np.testing.assert_array_equal(behind[1], behind[0])
+    np.testing.assert_array_equal(behind[3], behind[2])
     hit = plain[..., 1] >= 0
     assert 0.2 < hit.mean() < 1.0 and 0.0 < any_plain.mean() < 1.0
     # the soup's triangles met were hit somewhere, so the cull had something to get wrong

@@ -234,22 +234,41 @@ def test_light_modes_need_every_corner_and_agreeing_t_vertices():
     assert render.light_modes(ev, classes, tv).tolist() == [[T, T], [V, T], [T, T]]
 
 
-def test_light_modes_change_no_bit_where_nothing_occludes_and_are_dropped_beyond_their_cap(
+def test_light_modes_keep_the_bits_of_tracing_around_a_blocker_and_are_dropped_beyond_a_cap(
         monkeypatch):
-    # The floor under a small emitter with nothing between: every per-pixel element's corners
-    # see the light whole, so its hits cast no shadow ray, and the image has the bits of
-    # tracing them. With the classes' cap at 0 the vertex pass keeps none, the context has no
-    # modes, and the image is the same.
-    from daskrad import direct
-    from daskrad.kernels.direct import LIGHT_VISIBLE
+    # A floor under a small emitter with a wide blocker between, refined where its shadow
+    # falls (T-vertices and all): the blocker is large and square, so an element every corner
+    # of which sees the light whole is unoccluded everywhere, and taking the light as visible
+    # there gives the bits of tracing it. A mode on the wrong element (or light) would put the
+    # light into the shadow and change pixels. With the classes' cap at 0 the vertex pass
+    # keeps none, the context has no modes, and the image is again the same.
+    from dataclasses import replace
 
-    scene = _area_scene(24)
-    kw = dict(patch_size=2.0, element_size=0.5, rdiff=0.01, subdivide=0.0)
-    ctx, _ = render_context(scene, **kw)
-    assert ctx.elem_light_mode is not None
-    assert (ctx.elem_light_mode[ctx.elem_perpixel] == LIGHT_VISIBLE).any()
+    from daskrad import direct
+    from daskrad.kernels.direct import LIGHT_TRACE, LIGHT_VISIBLE
+
+    v = np.array([[-2, 0, -2], [-2, 0, 2], [2, 0, 2], [2, 0, -2],
+                  [-0.2, 2, -0.2], [0.2, 2, -0.2], [0.2, 2, 0.2], [-0.2, 2, 0.2],
+                  [-0.5, 1, -0.5], [0.5, 1, -0.5], [0.5, 1, 0.5], [-0.5, 1, 0.5]], float)
+    cam = Camera(eye=np.array([0.1, 6.0, 0.2]), look_at=np.zeros(3),
+                 up=np.array([0.0, 0.0, 1.0]), fov=42.0, width=48, height=48)
+    scene = scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11]]),
+                              [0, 1, 2], diffuse=[[RHO] * 3, [0.0] * 3, [0.0] * 3],
+                              emission=[[0] * 3, [20.0] * 3, [0] * 3], camera=cam)
+    kw = dict(patch_size=1.0, element_size=0.5, rdiff=0.01)
+    ctx, h = render_context(scene, **kw)
+    assert h.generation > 0                              # refined along the shadow
+    modes = ctx.elem_light_mode
+    pp = ctx.elem_perpixel
+    assert modes is not None and modes.shape == (len(h.elem_verts), len(ctx.lights.emitter_corners))
+    assert (modes[pp] == LIGHT_VISIBLE).any() and (modes[pp] == LIGHT_TRACE).any()
     image, count = _render(ctx)
     assert count > 0
+    traced, _ = _render(replace(ctx, elem_light_mode=None))
+    assert np.array_equal(image, traced)
+    # and the modes matter: every light taken as visible everywhere lights the shadow
+    wrong, _ = _render(replace(ctx, elem_light_mode=np.full_like(modes, LIGHT_VISIBLE)))
+    assert (wrong > image).any()
     monkeypatch.setattr(direct, "CLASSES_MAX", 0)
     capped, _ = render_context(scene, **kw)
     assert capped.elem_light_mode is None

@@ -778,9 +778,11 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
         Candidate occluders found per point before each light's ``V`` was settled (summed over
         lights; 0: no candidate, no raster at all; 1 for a light one face hides).
     classes : (n, M) int8
-        Each light's class at each point: ``LIGHT_VISIBLE`` (``F > 0``, ``V = 1``),
-        ``LIGHT_HIDDEN`` (``F > 0``, ``V = 0``) or ``LIGHT_TRACE``
-        (:data:`daskrad.kernels.direct.LIGHT_TRACE`: neither).
+        Each light's class at each point: ``LIGHT_VISIBLE`` (``F > 0`` and no candidate
+        occluder in the pyramid to the light: ``V = 1`` exactly, not only to the raster's
+        resolution), ``LIGHT_HIDDEN`` (``F > 0``, ``V = 0``) or ``LIGHT_TRACE``
+        (:data:`daskrad.kernels.direct.LIGHT_TRACE`: neither, or a thin occluder that covers
+        no pixel centre).
     """
     npts = points.shape[0]
     out = np.zeros((npts, 3))
@@ -845,7 +847,7 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
             if hint > 0 and vis == 0.0 and hid[hid.shape[0] - 1] > 0:
                 hints[m, :] = hid
             work[i] += n_c
-            if vis == 1.0:
+            if vis == 1.0 and n_c == 0:     # no occluder in the pyramid at all: exact
                 classes[i, m] = LIGHT_VISIBLE
             elif vis == 0.0:
                 classes[i, m] = LIGHT_HIDDEN

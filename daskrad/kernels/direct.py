@@ -4,7 +4,8 @@
 One function, :func:`irradiance_one`, computes the irradiance ``H`` (W per unit area) arriving
 at a point ``p`` with unit normal ``n`` from every light, with shadows through the voxel grid;
 the vertex pass (:func:`irradiance_points`) and the per-pixel pass (eq. 9, the renderer) both
-call it, so a vertex and a pixel at the same place get the same light.
+call it, so a vertex and a pixel at the same place get the same light (the per-pixel pass may
+take a light every corner of the element sees whole as visible, without its shadow rays).
 
 - **Point light** ``I`` (W/sr) at ``q``: ``H = I cos θ / r²`` when the segment is free.
 - **Directional light** travelling along unit ``w`` with irradiance ``E`` on a surface facing
@@ -136,7 +137,7 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
     o[0] = ox
     o[1] = oy
     o[2] = oz
-    aim_fan(fan, grid, o, n)
+    aim_fan(fan, grid, o, n, off)
     d = np.empty(3)
     # ---- point lights
     for li in range(pl_pos.shape[0]):

@@ -95,7 +95,7 @@ def gather_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_v
         nrm = normals[i]
         t, s = tangent_frame(nrm)
         o = points[i] + off * nrm
-        aim_fan(fan, grid, o, nrm)
+        aim_fan(fan, grid, o, nrm, off)
         row = nnz
         for k in range(ss):
             u = ((k % side) + hash01(seeds[i], 2 * k)) / side

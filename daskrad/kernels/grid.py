@@ -339,10 +339,10 @@ class Fan(NamedTuple):
     triangles, and every ray tested them (the Cornell box's junction gather: 35 of 62 tests a
     ray). A fan decides that once per triangle and origin, the first time a ray meets it.
 
-    stamp : (T,) int64
+    stamp : (T,) int32
         ``2 · key + 1``: triangle wholly below the current fan's plane; ``2 · key``: not;
         anything else: not decided yet for this fan.
-    key : (1,) int64
+    key : (1,) int32
         The current fan's number (``-1``: no fan); :func:`aim_fan` moves it on, so one stamp
         array serves every origin of a kernel call without clearing.
     origin, normal : (3,) float64
@@ -362,28 +362,32 @@ class Fan(NamedTuple):
 def new_fan(grid):
     """A :class:`Fan` for ``grid``'s triangles, aimed nowhere yet. It is scratch: one per
     thread, aimed (:func:`aim_fan`) at each origin in turn."""
-    return Fan(np.full(grid.triangles.shape[0], -1, np.int64), np.full(1, -1, np.int64),
+    return Fan(np.full(grid.triangles.shape[0], -1, np.int32), np.full(1, -1, np.int32),
                np.zeros(3), np.zeros(3), np.zeros(1))
 
 
 #: A fan that culls nothing (``key`` -1): the plain walk of :func:`closest_hit_one`.
-NO_FAN = Fan(np.full(0, -1, np.int64), np.full(1, -1, np.int64), np.zeros(3), np.zeros(3),
+NO_FAN = Fan(np.full(0, -1, np.int32), np.full(1, -1, np.int32), np.zeros(3), np.zeros(3),
              np.zeros(1))
 
 
 @jit
-def aim_fan(fan, grid, o, n):
+def aim_fan(fan, grid, o, n, lift):
     """Make ``fan`` the rays from ``o (3,)`` that rise above the plane through it with unit
-    normal ``n (3,)``. The cull is exact: a triangle is skipped only when its highest corner
-    lies more than ``FAN_MARGIN`` edge tolerances (plus the rounding of the coordinates)
-    below the plane, so not even the ray–triangle test's edge tolerance (``grid.eps``) brings
-    a point of it within reach of a ray ``o + t d`` with ``d · n > 0`` and ``t >= 0``, which
-    never goes below the plane."""
+    normal ``n (3,)``; ``o`` lies ``lift`` (the rays' offset, a length) above its surface.
+
+    A triangle is skipped only when its highest corner lies more than ``lift / 2`` plus
+    ``FAN_MARGIN`` edge tolerances (and the rounding of the coordinates) below the plane: the
+    surface's own triangles, ``lift`` below, are. A ray ``o + t d`` with ``d · n > 0`` and
+    ``t >= 0`` never goes below the plane, and the ray–triangle test's edge tolerance
+    (``grid.eps``, measured from each edge's line) reaches past a corner of angle ``α`` by
+    about ``2 eps / sin α``: within the margin but for slivers with an angle under ~1e-5
+    radian, where the plain walk's hit would be the edge tolerance's artefact anyway."""
     fan.key[0] += 1
     for a in range(3):
         fan.origin[a] = o[a]
         fan.normal[a] = n[a]
-    fan.margin[0] = (FAN_MARGIN * grid.eps
+    fan.margin[0] = (0.5 * lift + FAN_MARGIN * grid.eps
                      + COORD_ROUND * (abs(o[0]) + abs(o[1]) + abs(o[2])))
 
 

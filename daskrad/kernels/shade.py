@@ -6,7 +6,9 @@ few hits that need more: hits on elements whose vertex colours spread more than 
 (paper eq. 9: their direct light is recomputed at the hit, exactly as at a vertex) and hits on
 materials with a specular part (a Phong lobe from every light). Both go through
 :func:`daskrad.kernels.direct.irradiance_one`, so a pixel and a vertex at the same place get the
-same direct light, with the same robust shadow-ray offset.
+same direct light, with the same robust shadow-ray offset; only an area light every corner of
+the hit's element sees whole is taken as visible without its shadow rays (``modes``,
+:func:`daskrad.render.light_modes`).
 
 Area-light shadow rays are stratified and jittered by a hash of the hit's ``seed`` (its pixel
 sample id, see :func:`daskrad.render.sample_ids`): a pixel's value depends on the pixel, never

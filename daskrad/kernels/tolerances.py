@@ -30,10 +30,10 @@ DEPTH_TIE = 1e-9
 RAY_EPS = 1e-12
 
 #: A fan of rays (:class:`daskrad.kernels.grid.Fan`) skips a triangle whose highest corner lies
-#: more than this many edge tolerances (``RAY_EPS · diag``) below the plane the rays rise
-#: from: far beyond the edge tolerance and the round-off of the heights, far below the rays'
-#: offset from their surface (``RAY_OFFSET``, 10⁵ edge tolerances), whose own triangles are
-#: the ones skipped.
+#: more than half the rays' offset from their surface plus this many edge tolerances
+#: (``RAY_EPS · diag``) below the plane the rays rise from: beyond the edge tolerance and the
+#: round-off of the heights, while the surface's own triangles, a whole offset below
+#: (``RAY_OFFSET``, 10⁵ edge tolerances), are the ones skipped.
 FAN_MARGIN = 1000.0
 
 #: The voxel grid's box is the scene's box padded by this fraction of the scene diagonal on every
