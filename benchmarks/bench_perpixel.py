@@ -35,7 +35,7 @@ from numba import njit
 from daskrad import direct, render, solve
 from daskrad.distributed.executor import InProcess
 from daskrad.kernels.direct import hash01
-from daskrad.kernels.gather import _direction
+from daskrad.kernels.gather import cosine_direction
 from daskrad.kernels.grid import aim_fan, closest_hit_fan, closest_hit_one, new_fan
 from daskrad.kernels.pathtrace import tangent_frame
 from daskrad.preprocess import preprocess
@@ -62,7 +62,7 @@ def _gather_hits(grid, points, normals, seeds, off, side, fanned):
         for k in range(ss):
             u = ((k % side) + hash01(seeds[i], 2 * k)) / side
             v = ((k // side) + hash01(seeds[i], 2 * k + 1)) / side
-            d = _direction(nrm, t, s, u, v)
+            d = cosine_direction(nrm, t, s, u, v)
             if fanned:
                 th, tri, _, _ = closest_hit_fan(grid, fan, o, d, off, np.inf)
             else:

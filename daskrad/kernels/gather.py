@@ -22,7 +22,7 @@ from daskrad.kernels.pathtrace import tangent_frame
 
 
 @jit
-def _direction(n, t, s, u, v):
+def cosine_direction(n, t, s, u, v):
     """Cosine-distributed direction about ``n`` for ``(u, v) ∈ [0, 1)²``."""
     r = math.sqrt(u)
     phi = 2.0 * math.pi * v
@@ -42,7 +42,7 @@ def near_surface(grid, points, normals, off, reach, side):
         t, s = tangent_frame(nrm)
         o = points[i] + off * nrm
         for k in range(side * side):
-            d = _direction(nrm, t, s, ((k % side) + 0.5) / side, ((k // side) + 0.5) / side)
+            d = cosine_direction(nrm, t, s, ((k % side) + 0.5) / side, ((k // side) + 0.5) / side)
             if any_hit_one(grid, o, d, off, reach):
                 out[i] = True
                 break
@@ -100,7 +100,7 @@ def gather_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_v
         for k in range(ss):
             u = ((k % side) + hash01(seeds[i], 2 * k)) / side
             v = ((k // side) + hash01(seeds[i], 2 * k + 1)) / side
-            d = _direction(nrm, t, s, u, v)
+            d = cosine_direction(nrm, t, s, u, v)
             th, tri, bu, bv = closest_hit_fan(grid, fan, o, d, off, np.inf)
             if tri < 0:
                 continue
