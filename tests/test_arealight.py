@@ -253,19 +253,28 @@ def test_occluders_are_clipped_to_the_widened_pyramid_exactly():
     assert len(on_edge) == 1 and any(np.array_equal(on_edge[0], q) for q in b)
 
 
-def test_fully_hidden_light_gives_zero_through_the_pipeline():
-    # Floor 2 × 2, a 0.5 × 0.5 emitter at y = 1, a wider blocker at y = 0.5 (test_direct's
-    # scene): floor vertices under the blocker's middle see no light at all, exactly 0.
+def _blocked_light(half, patch_size, element_size, method="hemisphere"):
+    """A 2 × 2 floor (ρ 0.5), a 0.5 × 0.5 emitter at y = 1 facing down (radiance 3) and a black
+    square blocker of half-side ``half`` at y = 0.5: ``(hierarchy, triangles, direct
+    context)``."""
+    b = half
     v = np.array([[-1, 0, -1], [-1, 0, 1], [1, 0, 1], [1, 0, -1],
                   [-0.25, 1, -0.25], [0.25, 1, -0.25], [0.25, 1, 0.25], [-0.25, 1, 0.25],
-                  [-0.5, 0.5, -0.5], [-0.5, 0.5, 0.5], [0.5, 0.5, 0.5], [0.5, 0.5, -0.5]])
+                  [-b, 0.5, -b], [-b, 0.5, b], [b, 0.5, b], [b, 0.5, -b]])
     scene = scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11]]),
                               [0, 1, 0], diffuse=[[0.5] * 3, [0, 0, 0]],
                               emission=[[0] * 3, [3.0] * 3])
-    h = build_hierarchy(scene, 2.0, 0.25)
+    h = build_hierarchy(scene, patch_size, element_size)
     tris, _, tri_element = hierarchy_triangles(h)
-    ctx = direct.make_context(scene, h, build_grid(tris), method="hemisphere",
+    ctx = direct.make_context(scene, h, build_grid(tris), method=method,
                               tri_element=tri_element)
+    return h, tris, ctx
+
+
+def test_fully_hidden_light_gives_zero_through_the_pipeline():
+    # A blocker wider than the emitter (test_direct's scene): floor vertices under the
+    # blocker's middle see no light at all, exactly 0.
+    h, tris, ctx = _blocked_light(0.5, 2.0, 0.25)
     H = direct.compute(ctx, 0, len(h.vertices))
     floor = (direct.vertex_normals(h)[:, 1] > 0.5) & (h.vertices[:, 1] < 0.25)
     below = floor & (np.abs(h.vertices[:, 0]) < 0.2) & (np.abs(h.vertices[:, 2]) < 0.2)
@@ -431,16 +440,7 @@ def test_vertex_classes_say_exactly_which_lights_are_wholly_visible_or_hidden(me
     # or F = 0); the classes do not depend on the batching.
     from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_VISIBLE
 
-    v = np.array([[-1, 0, -1], [-1, 0, 1], [1, 0, 1], [1, 0, -1],
-                  [-0.25, 1, -0.25], [0.25, 1, -0.25], [0.25, 1, 0.25], [-0.25, 1, 0.25],
-                  [-0.3, 0.5, -0.3], [-0.3, 0.5, 0.3], [0.3, 0.5, 0.3], [0.3, 0.5, -0.3]])
-    scene = scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11]]),
-                              [0, 1, 0], diffuse=[[0.5] * 3, [0, 0, 0]],
-                              emission=[[0] * 3, [3.0] * 3])
-    h = build_hierarchy(scene, 0.25, 0.125)
-    tris, _, tri_element = hierarchy_triangles(h)
-    ctx = direct.make_context(scene, h, build_grid(tris), method=method,
-                              tri_element=tri_element)
+    h, _, ctx = _blocked_light(0.3, 0.25, 0.125, method)
     n, M = len(h.vertices), len(ctx.emitter_corners)
     assert M == 4
     H, classes = direct.vertex_light(ctx, 0, n)
