@@ -786,9 +786,9 @@ def light_modes(elem_verts: np.ndarray, classes: np.ndarray,
     24.2 → 19.4 s, 49 of 27,648 pixels changed (relative RMS 3.2e-4, at most 3.2 % in one
     pixel); the Cornell box's tiles 0.50 → 0.35 s, its image with the same bits. (Taking a
     light as visible wherever the corners' 32² windows showed it whole, occluders below the
-    raster's resolution included: 88 pixels changed, up to 9 %.) A light hidden from every corner is traced still: the
-    office's papers, stacked and lifted off the desk, have corners under one another and lit
-    interiors (taken as hidden: 543 pixels changed, up to 96 %).
+    raster's resolution included: 88 pixels changed, up to 9 %.) A light hidden from every
+    corner is traced still: the office's papers, stacked and lifted off the desk, have corners
+    under one another and lit interiors (taken as hidden: 543 pixels changed, up to 96 %).
 
     A T-vertex that disagrees with an end of its edge sends both ends' elements back to
     tracing that light: the coarse element along the edge does not have it as a corner.
