@@ -31,6 +31,7 @@ from daskrad.kernels.shade import direct_at_hits
 from daskrad.kernels.unshadowed import unshadowed_elements
 from daskrad.mesh import default_sizes, vertex_average
 from daskrad.mesh.refine import TVertices, resolve_tvertices
+from daskrad.scene.corners import repeat_third
 from daskrad.scene.types import Camera, Scene
 from daskrad.settings import Settings
 from daskrad.solve import Solution, ambient
@@ -178,9 +179,6 @@ class RenderContext:
     vertex_soft: np.ndarray | None = None
     # the junction gather still to apply for this context's camera (:func:`for_view`)
     junctions: Junctions | None = None
-    # (E, M) int8, per element and area light of ``lights``: whether every corner of the
-    # element sees the light whole, so that its hits cast no shadow ray for it
-    # (:func:`light_modes`); None: every hit traces every light
     elem_light_mode: np.ndarray | None = None
 
     @property
@@ -801,7 +799,7 @@ def light_modes(elem_verts: np.ndarray, classes: np.ndarray,
         rows, lights = np.nonzero(bad)
         cls[a[rows], lights] = LIGHT_TRACE
         cls[b[rows], lights] = LIGHT_TRACE
-    ev = np.where(elem_verts >= 0, elem_verts, elem_verts[:, :1])
+    ev = repeat_third(elem_verts)
     visible = cls[ev[:, 0]] == LIGHT_VISIBLE                  # (E, M): every corner, in turn
     for c in range(1, ev.shape[1]):
         visible &= cls[ev[:, c]] == LIGHT_VISIBLE
