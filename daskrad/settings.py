@@ -37,6 +37,9 @@ class Settings:
     tolerance: float = 1e-3             # stop when RMS unshot / initial RMS unshot < tolerance
     max_iterations: int = 5000
     batch: int = 8                      # K shooters per form-factor task
+    sample_share: float = 1e-4          # a shooter with less of the light than this shoots
+    #                                     from one point, not its penumbra samples (0: never;
+    #                                     solve.SAMPLE_SHARE gives the why)
     spp: int = 4                        # stratified samples per pixel
     edge_spp: int = 64                  # samples of a pixel whose spp samples differ (an
     #                                     edge, render.EDGE_STEP); <= spp: never
@@ -103,6 +106,7 @@ class Settings:
         positive("tolerance", zero=True)       # 0: shoot max_iterations times
         integer("max_iterations", 0)
         integer("batch", 1, 1 << 16)
+        positive("sample_share", zero=True)
         integer("spp", 1, MAX_SPP)
         integer("edge_spp", 0, MAX_SPP)
         if self.workers is not None:      # None: chosen from the scene's size

@@ -68,8 +68,9 @@ class Solution:
     converged: bool = False
     seconds: float = 0.0
     queued: list = field(default_factory=list)
-    """Shooter ids of the batches chosen but not yet applied, in order. A checkpoint keeps
-    them so a resumed run applies exactly the batches the uninterrupted run would have."""
+    """Row keys (:func:`row_keys`: shooter ids, ``+ P`` for a one-point row) of the batches
+    chosen but not yet applied, in order. A checkpoint keeps them so a resumed run applies
+    exactly the batches the uninterrupted run would have."""
 
 
 def unshot_rms(unshot: np.ndarray, patch_area: np.ndarray) -> float:
@@ -147,6 +148,53 @@ def next_batch(unshot: np.ndarray, patch_area: np.ndarray, k: int,
     return order
 
 
+#: A shooter whose patch has sent and holds less than this share of the scene's light shoots
+#: from one point, not from the penumbra samples of
+#: :func:`daskrad.formfactor.shooting.shooter_points` (a sixth of the work in a furnished
+#: room, where nearly every patch has an occluder near it). The measure is the patch's
+#: exitance power ``B̄_p · A_p`` (mean over channels): everything it ever shoots has arrived
+#: in ``B``, and ``B`` only grows, so a patch that once shot sampled keeps its sampled row
+#: (the cached one) for its re-shots. The share is of ``initial RMS unshot × scene area``, the
+#: initial unshot power's scale. The error such a shot makes is the penumbra sampling's
+#: (a few per cent of the shot's light, moved between receivers near an occluder, not lost)
+#: times light that is a small share of the total (:mod:`benchmarks.bench_speed`).
+SAMPLE_SHARE = 1e-4        # the default of Settings.sample_share
+
+def patch_power(h: Hierarchy, radiosity: np.ndarray, ids: np.ndarray,
+                members: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """``(k,) float64``: exitance power ``Σ_{e ∈ p} mean_rgb(B_e) · A_e`` of the patches
+    ``ids``. ``members``: :func:`patch_members` of ``h``, made here when omitted."""
+    order, start = patch_members(h) if members is None else members
+    ids = np.asarray(ids, np.int64)
+    if not len(ids):
+        return np.zeros(0)
+    lo, count = start[ids], start[ids + 1] - start[ids]      # every patch has an element
+    first = np.cumsum(count) - count                          # each patch's run in `e`
+    e = order[np.repeat(lo - first, count) + np.arange(count.sum())]
+    return np.add.reduceat(radiosity[e].mean(axis=1) * h.elem_area[e], first)
+
+
+def patch_members(h: Hierarchy) -> tuple[np.ndarray, np.ndarray]:
+    """``(order (E,), start (P + 1,))``: the elements of patch ``p`` are
+    ``order[start[p]:start[p + 1]]``."""
+    order = np.argsort(h.elem_patch, kind="stable")
+    start = np.searchsorted(h.elem_patch[order], np.arange(h.n_patches + 1))
+    return order, start
+
+
+def row_keys(h: Hierarchy, sol: Solution, ids: np.ndarray, members=None,
+             share: float | None = None) -> np.ndarray:
+    """``(k,) int64``: the row each shooter ``ids`` shoots through
+    (:func:`daskrad.formfactor.shooting.row_key`): sampled when its exitance power
+    (:func:`patch_power`) is at least ``share`` of ``initial RMS unshot × scene area``
+    (default :data:`SAMPLE_SHARE`), else from one point."""
+    share = SAMPLE_SHARE if share is None else share
+    ids = np.asarray(ids, np.int64)
+    gate = share * sol.initial_rms * float(h.patch_area.sum())
+    sampled = patch_power(h, sol.radiosity, ids, members) >= gate
+    return shooting.row_key(ids, sampled, h.n_patches).astype(np.int64)
+
+
 def apply_shot(h: Hierarchy, reflectance: np.ndarray, sol: Solution, shooter: int,
                ids: np.ndarray, factors: np.ndarray) -> None:
     """Apply one shot in place: distribute the shooter's unshot radiosity over ``ids``.
@@ -170,27 +218,32 @@ def apply_shot(h: Hierarchy, reflectance: np.ndarray, sol: Solution, shooter: in
 #: 73k box 8.50 → 7.79 s (of 3), the cube 3.90 → 3.92 s (of 3), graz 30.1 → 29.8 s (of 2).
 PREFETCH = 8
 
-# A batch executor takes (batch number, shooter patch ids) and returns a handle whose
-# result() is a list of (ids, factors) rows, one per shooter, in the same order.
+# A batch executor takes (batch number, the shooters' row keys, :func:`row_keys`) and returns
+# a handle whose result() is a list of (ids, factors) rows, one per shooter, in the same order.
 Submit = Callable[[int, np.ndarray], object]
 
 
 def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, *,
           batch: int, tolerance: float, max_iterations: int,
           on_batch: Callable[[Solution], None] | None = None,
-          prefetch: Callable[[np.ndarray], None] | None = None) -> Solution:
+          prefetch: Callable[[np.ndarray], None] | None = None,
+          sample_share: float | None = None) -> Solution:
     """Shoot until the relative unshot RMS is below ``tolerance`` or ``max_iterations`` shots.
 
-    ``submit(n, patch_ids)`` starts the form-factor work of batch ``n`` and returns a handle
+    ``submit(n, keys)`` starts the form-factor work of batch ``n`` (its shooters' row keys,
+    :func:`row_keys`) and returns a handle
     with ``.result()``; in-process it computes at once, with Dask it is a future. Two batches
     are in flight: batch ``n + 1`` is chosen (excluding batch ``n``'s shooters) before batch
     ``n`` is applied. ``on_batch`` runs after each applied batch (progress, checkpoints).
 
-    ``prefetch(patch_ids)``, when given, hears after each batch which patches rank next
-    after those in flight (:data:`PREFETCH` batches' worth, most unshot power first, no more
-    than the shots left), and an empty list at the end: an executor may compute their rows
-    ahead on cores the batches leave idle, and drop those no longer offered. A row is a pure
-    function of the geometry and the patch, so this changes when rows are computed, never
+    ``sample_share``: the share of the light below which a shooter's row is taken from one
+    point (:func:`row_keys`; None: :data:`SAMPLE_SHARE`).
+
+    ``prefetch(keys)``, when given, hears after each batch the row keys of the patches that
+    rank next after those in flight (:data:`PREFETCH` batches' worth, most unshot power first,
+    no more than the shots left), and an empty list at the end: an executor may compute their
+    rows ahead on cores the batches leave idle, and drop those no longer offered. A row is a
+    pure function of the geometry and its key, so this changes when rows are computed, never
     which patches shoot or the bits.
     """
     start = time.perf_counter() - sol.seconds
@@ -201,10 +254,17 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
                 or sol.iteration >= max_iterations)
 
     batch_no = len(sol.history) + len(sol.queued)
-    # batches already chosen before a checkpoint are submitted again, in their order
+    members = patch_members(h)
+    n_patches = h.n_patches
+
+    def patches(keys):
+        return np.asarray(keys, np.int64) % n_patches
+
+    # batches already chosen before a checkpoint are submitted again, in their order; a
+    # batch is its shooters' row keys (row_keys)
     pending: list[tuple[np.ndarray, object]] = [
-        (np.asarray(ids, np.int64), submit(len(sol.history) + n, np.asarray(ids, np.int64)))
-        for n, ids in enumerate(sol.queued)
+        (np.asarray(keys, np.int64), submit(len(sol.history) + n, np.asarray(keys, np.int64)))
+        for n, keys in enumerate(sol.queued)
     ]
 
     def queue(exclude):
@@ -212,13 +272,15 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
         room = max_iterations - sol.iteration - sum(len(p) for p, _ in pending)
         ids = next_batch(sol.unshot, h.patch_area, min(batch, room), exclude)
         if len(ids):
-            pending.append((ids, submit(batch_no, ids)))
+            keys = row_keys(h, sol, ids, members, sample_share)
+            pending.append((keys, submit(batch_no, keys)))
             batch_no += 1
 
     if not done() and not pending:
         queue(None)
     while pending:
-        ids, handle = pending.pop(0)
+        keys, handle = pending.pop(0)
+        ids = patches(keys)
         if not done():
             queue(ids)          # the next batch computes while this one is applied
         rows = handle.result()
@@ -234,11 +296,12 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
             pending.clear()
         elif not pending:
             queue(None)
-        sol.queued = [ids.tolist() for ids, _ in pending]
+        sol.queued = [keys.tolist() for keys, _ in pending]
         if prefetch is not None and pending:
-            ahead = np.concatenate([p for p, _ in pending])
+            ahead = patches(np.concatenate([k for k, _ in pending]))
             room = min(PREFETCH * batch, max_iterations - sol.iteration - len(ahead))
-            prefetch(next_batch(sol.unshot, h.patch_area, max(room, 0), ahead))
+            offer = next_batch(sol.unshot, h.patch_area, max(room, 0), ahead)
+            prefetch(row_keys(h, sol, offer, members, sample_share))
         if on_batch is not None:
             on_batch(sol)
     if prefetch is not None:
@@ -285,4 +348,5 @@ def radiosity(light: DirectLight, settings: Settings, executor, begin: Solution 
     return solve(h, mesh.reflectance, start(light) if begin is None else begin,
                  executor.shots, batch=settings.batch, tolerance=settings.tolerance,
                  max_iterations=settings.max_iterations, on_batch=on_batch,
-                 prefetch=getattr(executor, "prefetch", None))
+                 prefetch=getattr(executor, "prefetch", None),
+                 sample_share=settings.sample_share)

@@ -267,3 +267,34 @@ def test_points_under_an_open_two_sided_shelf_are_kept_whatever_the_face_order(u
     assert len(points) == 2 * len(shooting.SHOOTER_POINTS)
     under = (points[:, 0] > 0.3) & (points[:, 0] < 0.8)
     assert under.any()
+
+
+def test_a_one_point_row_is_keyed_apart_and_leaves_from_the_mean_sample_point():
+    # a floor patch beside the fin is penumbra-sampled; its one-point row (key P + p) leaves
+    # from the weighted mean of its sample points and is another row than the sampled one;
+    # in a convex room both keys give the centroid's row, bit for bit
+    h, ctx = _context(sc.degenerate_scenes()["non-manifold edge (fin)"])
+    P = h.n_patches
+    p = int(np.flatnonzero((np.abs(h.patch_centroid[:, 1]) < 1e-12)
+                           & (np.abs(h.patch_centroid[:, 0] - 0.5) < 0.2)
+                           & (h.patch_centroid[:, 2] > 0.2) & (h.patch_centroid[:, 2] < 0.8))[0])
+    assert shooting.key_patch(P + p, P) == (p, False) and shooting.key_patch(p, P) == (p, True)
+    points, weights = shooting.shooter_points(ctx, p)
+    assert len(points) > 1
+    point, weight = shooting.one_point(points, weights)
+    np.testing.assert_allclose(point[0], h.patch_centroid[p], atol=1e-12)  # none enclosed
+    assert weight.tolist() == [1.0]
+    cache = shooting.RowCache()
+    (s_ids, s_f), (o_ids, o_f) = shooting.shoot_rows(ctx, [p, P + p], cache)
+    one = shooting.shoot_row(ctx, p, sampled=False)
+    np.testing.assert_array_equal(o_ids, np.flatnonzero(one > 0))
+    np.testing.assert_array_equal(o_f, one[o_ids])
+    dense = np.zeros(h.n_elements)
+    dense[s_ids] = s_f
+    assert np.abs(dense - one).sum() > 1e-3                 # the fin's penumbra differs
+    assert cache.misses == 2 and cache.has(p) and cache.has(P + p)
+    scene = box_scene(size=(1.0, 0.7, 1.3), diffuse=0.5, emission_per_face=1 / math.pi)
+    h, ctx = _context(scene)
+    for q in (0, h.n_patches - 1):
+        np.testing.assert_array_equal(shooting.shoot_row(ctx, q),
+                                      shooting.shoot_row(ctx, q, sampled=False))

@@ -138,3 +138,28 @@ def test_near_receiver_sharing_an_edge_averages_F_ji_over_its_area(n):
     assert np.all(F > 0)
     np.testing.assert_allclose((F * ctx.elem_area).sum(), 0.200044,
                                rtol={1: 0.01, 2: 0.003}[n])
+
+
+def test_row_keys_sample_a_shooter_by_its_share_of_the_light_and_keep_it_as_B_grows(rng):
+    # sampled (key p) exactly when Σ_e∈p mean_rgb(B_e)·A_e >= share · initial RMS · area,
+    # one point (key P + p) below; B only grows in a solve, and a larger B never turns a
+    # sampled shooter back to one point (its cached sampled row serves every re-shot)
+    scene = box_scene(size=(1.0, 1.5, 2.0), diffuse=0.5, emission_per_face=0.1)
+    settings = Settings(patch_size=0.5, element_size=0.25, resolution=32, max_iterations=0)
+    h = solve_scene(scene, settings).hierarchy
+    radiosity = rng.uniform(0.0, 1.0, (h.n_elements, 3)) ** 4
+    sol = solve.Solution(radiosity=radiosity, direct=radiosity.copy(),
+                         unshot=np.zeros((h.n_patches, 3)), initial_rms=0.3)
+    power = np.bincount(h.elem_patch, radiosity.mean(axis=1) * h.elem_area,
+                        minlength=h.n_patches)
+    ids = rng.permutation(h.n_patches)
+    share = float(np.median(power)) / (0.3 * h.patch_area.sum())
+    keys = solve.row_keys(h, sol, ids, share=share)
+    sampled = power[ids] >= share * 0.3 * h.patch_area.sum()
+    assert 0 < sampled.sum() < len(ids)
+    np.testing.assert_array_equal(keys, np.where(sampled, ids, ids + h.n_patches))
+    np.testing.assert_allclose(solve.patch_power(h, radiosity, ids), power[ids], rtol=1e-12)
+    sol.radiosity = radiosity + rng.uniform(0.0, 0.1, radiosity.shape)
+    grown = solve.row_keys(h, sol, ids, share=share)
+    assert np.all(grown[sampled] == ids[sampled]) and (grown < h.n_patches).sum() >= sampled.sum()
+    assert np.all(solve.row_keys(h, sol, ids, share=0.0) == ids)    # 0: always sampled

@@ -74,7 +74,10 @@ CHUNK_ROWS = 1 << 16
 #: Settings that change the solution; a resume refuses a store written with other values.
 SOLUTION_SETTINGS = ("method", "resolution", "edge_angle", "patch_size", "element_size",
                      "batch", "seed", "two_pass", "area_samples", "area_method", "subdivide",
-                     "min_element_size")
+                     "min_element_size", "sample_share")
+#: Solution settings added since the format began, with the value a store written before them
+#: was solved with (such a store resumes with that value).
+SINCE = {"sample_share": 0.0}
 #: The stopping criteria: a resume may change them (:meth:`Store.load_checkpoint` picks a
 #: checkpoint a straight run with the new criteria passes through).
 STOPPING = ("tolerance", "max_iterations")
@@ -334,7 +337,7 @@ class Store:
                              self.given)
         old = attrs.get("settings", {})
         new = _jsonable(self.settings.as_dict())
-        changed = [k for k in SOLUTION_SETTINGS if old.get(k) != new.get(k)]
+        changed = [k for k in SOLUTION_SETTINGS if old.get(k, SINCE.get(k)) != new.get(k)]
         if changed:
             raise StoreError("cannot resume: the store was written with other settings ("
                              + ", ".join(f"{k}={old.get(k)!r}" for k in changed)

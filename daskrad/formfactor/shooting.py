@@ -30,7 +30,9 @@ with an occluder within ``PENUMBRA`` radii (:mod:`daskrad.kernels.blockers`: onl
 whose plane has the shooter on one side and part of the scene on the other can occlude) is
 sampled at stratified points and its row and visible fractions are area averages over them
 (:func:`shooter_points`). Shooters without one, every shooter of a convex room among them,
-keep the single centroid pass, bit for bit.
+keep the single centroid pass, bit for bit. A shot carrying little of the scene's light leaves
+from one point even so (:data:`daskrad.solve.SAMPLE_SHARE`): the solve asks for that row by
+another key (:func:`row_key`).
 """
 
 from __future__ import annotations
@@ -270,9 +272,33 @@ def _average(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
     return (weights[:, None] * values).sum(axis=0)
 
 
-def shoot_row(ctx: ShootContext, p: int) -> np.ndarray:
-    """``(E,) float64``: the form factors ``F_pj`` from patch ``p`` to every element."""
+def row_key(patch: int | np.ndarray, sampled: bool | np.ndarray, n_patches: int):
+    """The name of a row: the patch id ``p`` for its penumbra-sampled row
+    (:func:`shooter_points`), ``P + p`` for its one-point row. Executors and row caches keep
+    rows by key, so the two rows of a patch never stand in for each other."""
+    return np.where(sampled, patch, np.asarray(patch) + n_patches)
+
+
+def key_patch(key: int, n_patches: int) -> tuple[int, bool]:
+    """``(patch id, sampled)`` of a row key (:func:`row_key`)."""
+    return (key, True) if key < n_patches else (key - n_patches, False)
+
+
+def one_point(points: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The one point a low-power shot leaves from (:data:`daskrad.solve.SAMPLE_SHARE`): the
+    weighted mean of :func:`shooter_points`, so the centroid, or the mean of the points not
+    inside a closed object (a convex combination of points of a convex patch: on it)."""
+    if len(points) == 1:
+        return points, weights
+    return _average(points, weights)[None], np.ones(1)
+
+
+def shoot_row(ctx: ShootContext, p: int, sampled: bool = True) -> np.ndarray:
+    """``(E,) float64``: the form factors ``F_pj`` from patch ``p`` to every element; from
+    the one point of :func:`one_point` unless ``sampled``."""
     points, weights = shooter_points(ctx, p)
+    if not sampled:
+        points, weights = one_point(points, weights)
     normals = np.repeat(ctx.patch_normal[p][None], len(points), axis=0)
     rows = formfactor.shooter_rows(points, normals, ctx.vertices, ctx.elem_verts,
                                    method=ctx.method, resolution=ctx.resolution,
@@ -427,7 +453,8 @@ class RowCache:
 
 def shoot_rows(ctx: ShootContext, patch_ids: np.ndarray, cache: RowCache | None = None
                ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Form-factor rows of the shooters ``patch_ids``, in that order.
+    """Form-factor rows of the shooters ``patch_ids``, in that order: row keys
+    (:func:`row_key`; a patch id is its sampled row).
 
     Returns a list of ``(ids (k,) int32, factors (k,) float64)``: the elements with a nonzero
     form factor from the shooter and the factors ``F_ij``, ``Σ factors ≤ 1``. ``cache``: rows
@@ -438,7 +465,7 @@ def shoot_rows(ctx: ShootContext, patch_ids: np.ndarray, cache: RowCache | None 
         p = int(p)
         found = cache.get(p) if cache is not None else None
         if found is None:
-            row = shoot_row(ctx, p)
+            row = shoot_row(ctx, *key_patch(p, len(ctx.patch_area)))
             ids = np.flatnonzero(row > 0).astype(np.int32)
             found = (ids, row[ids])
             if cache is not None:
