@@ -156,6 +156,25 @@ def test_resume_refuses_other_settings_and_a_missing_store(uninterrupted, tmp_pa
         run(CORNELL, tmp_path / "none.exr", SETTINGS, progress=False, resume=True)
 
 
+def test_a_store_from_before_sample_share_resumes_with_every_shot_sampled(uninterrupted,
+                                                                          tmp_path):
+    # a store written before --sample-share was solved with every row sampled (share 0): it
+    # resumes with --sample-share 0, and another share is refused by name
+    import shutil
+
+    out = tmp_path / "older.exr"
+    shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
+    meta = out.with_suffix(".zarr") / "zarr.json"
+    doc = json.loads(meta.read_text())
+    del doc["attributes"]["settings"]["sample_share"]
+    meta.write_text(json.dumps(doc))
+    with pytest.raises(OptionError, match=r"other settings \(sample_share=0\.0\)"):
+        run(CORNELL, out, SETTINGS, progress=False, resume=True)
+    report = run(CORNELL, out, SETTINGS.replace(sample_share=0.0), progress=False, resume=True)
+    assert report["iterations"] == SETTINGS.max_iterations
+    np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
+
+
 def test_a_torn_checkpoint_leaves_the_previous_one(tmp_path):
     # A client killed while writing a slot has not yet named it in the root attributes:
     # reading gives the previous checkpoint, bit for bit.

@@ -335,9 +335,9 @@ class Store:
             raise StoreError(f"not a daskrad solution store of this version (format "
                              f"{attrs.get('format')!r}, this daskrad reads {FORMAT!r})",
                              self.given)
-        old = attrs.get("settings", {})
+        old = {**SINCE, **attrs.get("settings", {})}
         new = _jsonable(self.settings.as_dict())
-        changed = [k for k in SOLUTION_SETTINGS if old.get(k, SINCE.get(k)) != new.get(k)]
+        changed = [k for k in SOLUTION_SETTINGS if old.get(k) != new.get(k)]
         if changed:
             raise StoreError("cannot resume: the store was written with other settings ("
                              + ", ".join(f"{k}={old.get(k)!r}" for k in changed)
