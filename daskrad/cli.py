@@ -83,6 +83,13 @@ def _default(name: str) -> str:
     return f"(default {getattr(Settings, name)})"
 
 
+def _default_shots() -> str:
+    """``--max-iterations``' default, which follows the scene's patch count."""
+    from daskrad.settings import MIN_SHOTS, SHOTS_PER_PATCH
+
+    return f"(default {SHOTS_PER_PATCH} a patch, at least {MIN_SHOTS})"
+
+
 def _choices(registry: str) -> str:
     """The names of a registry, for ``--help`` only (the registries import numba kernels,
     which a plain run must not wait for before it has parsed its options)."""
@@ -145,7 +152,7 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     run.add_argument("--tolerance", type=_positive_float,
                      help=f"relative unshot RMS to stop at {_default('tolerance')}")
     run.add_argument("--max-iterations", type=_nonneg_int,
-                     help=f"shots at most {_default('max_iterations')}")
+                     help=f"shots at most {_default_shots()}")
     run.add_argument("--batch", type=_positive_int,
                      help=f"shooters per form-factor task (K) {_default('batch')}")
     run.add_argument("--sample-share", type=_nonneg_float,

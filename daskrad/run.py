@@ -56,6 +56,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         if settings.workers is None:
             settings = settings.replace(workers=auto_workers(scene, settings))
         mesh = preprocess(scene, settings)                                        # 1
+        settings = settings.with_patches(mesh.hierarchy.n_patches)
         seconds["preprocess"], t = time.perf_counter() - t, time.perf_counter()
         replaced = outputs.earlier()
         store = Store(outputs.working_store(resume), settings, resume=resume, scene=scene)

@@ -341,6 +341,7 @@ def radiosity(light: DirectLight, settings: Settings, executor, begin: Solution 
     """
     mesh = light.mesh
     h = mesh.hierarchy
+    settings = settings.with_patches(h.n_patches)
     executor.set_geometry(
         shooting.make_context(h, settings.method, settings.resolution, grid=mesh.grid,
                               tri_element=mesh.tri_element, edge_angle=settings.edge_angle),

@@ -172,6 +172,10 @@ def test_cornell_box_writes_preview_and_report(cornell):
     rms = [h["relative_unshot_rms"] for h in report["unshot_rms_history"]]
     assert rms[-1] <= report["settings"]["tolerance"]
     assert report["iterations"] == report["unshot_rms_history"][-1]["iteration"]
+    # the shot cap the run resolved from its patch count is the one it reports
+    from daskrad.settings import MIN_SHOTS, SHOTS_PER_PATCH
+    assert report["settings"]["max_iterations"] == max(
+        MIN_SHOTS, SHOTS_PER_PATCH * report["counts"]["patches"])
 
 
 def test_bad_output_path_is_one_line_and_exit_2(tmp_path, scenes_dir):

@@ -163,3 +163,19 @@ def test_row_keys_sample_a_shooter_by_its_share_of_the_light_and_keep_it_as_B_gr
     grown = solve.row_keys(h, sol, ids, share=share)
     assert np.all(grown[sampled] == ids[sampled]) and (grown < h.n_patches).sum() >= sampled.sum()
     assert np.all(solve.row_keys(h, sol, ids, share=0.0) == ids)    # 0: always sampled
+
+
+def test_the_default_shot_cap_follows_the_patch_count():
+    # None: SHOTS_PER_PATCH a patch, at least MIN_SHOTS; a number given is kept as it is
+    from daskrad.settings import MIN_SHOTS, SHOTS_PER_PATCH
+
+    s = Settings()
+    assert s.max_iterations is None and s.validate() is s
+    assert s.with_patches(10).max_iterations == MIN_SHOTS
+    big = MIN_SHOTS // SHOTS_PER_PATCH + 1000
+    assert s.with_patches(big).max_iterations == SHOTS_PER_PATCH * big > MIN_SHOTS
+    assert s.replace(max_iterations=7).with_patches(big).max_iterations == 7
+    scene = box_scene(size=(1.0, 1.5, 2.0), diffuse=0.5, emission_per_face=0.1)
+    solved = solve_scene(scene, Settings(patch_size=0.5, element_size=0.25, resolution=32,
+                                         tolerance=0.0, batch=64))
+    assert solved.solution.iteration == MIN_SHOTS   # tolerance 0: the cap stops it
