@@ -298,3 +298,25 @@ def test_a_one_point_row_is_keyed_apart_and_leaves_from_the_mean_sample_point():
     for q in (0, h.n_patches - 1):
         np.testing.assert_array_equal(shooting.shoot_row(ctx, q),
                                       shooting.shoot_row(ctx, q, sampled=False))
+
+
+def test_the_solver_checks_its_geometry_once_when_its_context_is_made():
+    # make_context refuses a NaN vertex; the rows then trust the checked arrays
+    # (formfactor.checked_geometry), while any other call of a method still checks them
+    import dataclasses
+
+    from daskrad.errors import SceneError
+
+    h, _ = _context(box_scene(emission_per_face=0.1))
+    bad = dataclasses.replace(h, vertices=h.vertices.copy())
+    bad.vertices[0, 0] = np.nan
+    with pytest.raises(SceneError, match="finite"):
+        shooting.make_context(bad, "hemisphere", 32)
+    point, normal = h.patch_centroid[:1], h.patch_normal[:1]
+    with pytest.raises(SceneError, match="finite"):
+        formfactor.analytic_rows(point, normal, bad.vertices, bad.elem_verts)
+    with formfactor.checked_geometry():
+        rows = formfactor.analytic_rows(point, normal, bad.vertices, bad.elem_verts)
+    assert rows.shape == (1, h.n_elements)
+    with pytest.raises(SceneError, match="finite"):       # the block has ended
+        formfactor.analytic_rows(point, normal, bad.vertices, bad.elem_verts)

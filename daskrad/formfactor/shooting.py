@@ -100,6 +100,9 @@ class ShootContext:
     between the two sides of a two-sided face (lengths). ``grid`` is
     the voxel grid over the elements' triangles and ``tri_element : (T,) int`` the element of
     each of its triangles: the mesh's own (:class:`daskrad.preprocess.Mesh`), built once.
+    ``diagonal`` is the scene's bounding-box diagonal (0 in a context made by hand: computed
+    where needed). :func:`make_context` checks the geometry once; the rows trust it
+    (:func:`daskrad.formfactor.checked_geometry`).
     """
 
     vertices: np.ndarray
@@ -124,6 +127,7 @@ class ShootContext:
     grid: Grid | None = None
     tri_element: np.ndarray | None = None
     gap: float = 0.0
+    diagonal: float = 0.0       # the scene's bounding-box diagonal (0: not given)
 
 
 def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None = None,
@@ -134,6 +138,7 @@ def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None =
     element of each triangle (the pipeline passes the mesh's own); built here when omitted.
     """
     formfactor.get_method(method)
+    formfactor.check_geometry(h.vertices, h.elem_verts)    # once: the rows trust it
     if grid is None or tri_element is None:
         grid, tri_element = formfactor.element_grid(h.vertices, h.elem_verts)
 
@@ -141,8 +146,9 @@ def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None =
         corners = h.vertices[repeat_third(verts)]
         return np.linalg.norm(corners - centroid[:, None, :], axis=2).max(axis=1)
 
-    eps = tolerances.COPLANAR * scene_diagonal(h.vertices)
-    gap = tolerances.TWO_SIDED_GAP * scene_diagonal(h.vertices)
+    diagonal = scene_diagonal(h.vertices)
+    eps = tolerances.COPLANAR * diagonal
+    gap = tolerances.TWO_SIDED_GAP * diagonal
     return ShootContext(
         vertices=h.vertices, elem_verts=h.elem_verts, elem_area=h.elem_area,
         elem_centroid=h.elem_centroid, elem_normal=h.elem_normal, elem_polygon=h.elem_polygon,
@@ -153,7 +159,7 @@ def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None =
         polygon_sides=np.full(len(h.polygon_material), UNKNOWN, np.int8),
         polygon_two_sided=two_sided_polygons(h, eps, gap), eps=eps, gap=gap,
         method=method, resolution=resolution, options=dict(options),
-        grid=grid, tri_element=np.asarray(tri_element),
+        grid=grid, tri_element=np.asarray(tri_element), diagonal=diagonal,
     )
 
 
@@ -225,7 +231,7 @@ def _enclosed(ctx: ShootContext, points: np.ndarray, normal: np.ndarray) -> np.n
     t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(*normal)
     frame = np.array([[t1x, t1y, t1z], [t2x, t2y, t2z], normal])
     dirs = _PROBES @ frame                                     # (13, 3) world directions
-    lift = tolerances.RAY_OFFSET * scene_diagonal(ctx.vertices)
+    lift = tolerances.RAY_OFFSET * (ctx.diagonal or scene_diagonal(ctx.vertices))
     origins = np.repeat(points + lift * normal, len(dirs), axis=0)
     d = np.tile(dirs, (len(points), 1))
     _, tri, _, _ = closest_hit(grid, origins, d, 0.0, np.inf)
@@ -304,13 +310,12 @@ def shoot_row(ctx: ShootContext, p: int, sampled: bool = True) -> np.ndarray:
                                    method=ctx.method, resolution=ctx.resolution,
                                    grid=ctx.grid, **ctx.options)
     row = rows[0] if len(points) == 1 else _average(rows, weights)
-    offset = ctx.elem_centroid - ctx.patch_centroid[p]
-    near = ((np.einsum("ij,ij->i", offset, offset) < (NEAR_FIELD * ctx.patch_radius[p]) ** 2)
-            & (ctx.elem_polygon != ctx.patch_polygon[p]))
-    near &= row > 0
-    if not near.any():
+    ids = np.flatnonzero(row > 0)       # a near receiver has a factor: look at those only
+    offset = ctx.elem_centroid[ids] - ctx.patch_centroid[p]
+    ids = ids[(np.einsum("ij,ij->i", offset, offset) < (NEAR_FIELD * ctx.patch_radius[p]) ** 2)
+              & (ctx.elem_polygon[ids] != ctx.patch_polygon[p])]
+    if not len(ids):
         return row
-    ids = np.flatnonzero(near)
     # the method's own visibility of each near receiver: its factor over the unoccluded one
     # from the same points (won/covered for the default hemisphere method, exactly, at one
     # point). Over several points, the ratio of the averages: a point that cannot see the
@@ -465,7 +470,8 @@ def shoot_rows(ctx: ShootContext, patch_ids: np.ndarray, cache: RowCache | None 
         p = int(p)
         found = cache.get(p) if cache is not None else None
         if found is None:
-            row = shoot_row(ctx, *key_patch(p, len(ctx.patch_area)))
+            with formfactor.checked_geometry():          # make_context checked it
+                row = shoot_row(ctx, *key_patch(p, len(ctx.patch_area)))
             ids = np.flatnonzero(row > 0).astype(np.int32)
             found = (ids, row[ids])
             if cache is not None:
