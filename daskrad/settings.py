@@ -21,11 +21,10 @@ MAX_IMAGE_PIXELS = 1 << 26
 #: Samples per pixel at most (the seeds leave 2¹⁰ per pixel, :data:`daskrad.render.SEED_STRIDE`).
 MAX_SPP = 1024
 #: ``max_iterations`` None: shots per patch of the scene, and at least :data:`MIN_SHOTS`. A
-#: converging solve shoots each patch about once or twice in a furnished room (measured to
-#: the default tolerance: RenderPark's office3 1.09 shots a patch, the classroom 1.76, graz
-#: 1.95) and up
-#: to five times in a small room (the Cornell box: 1,560 shots, 309 patches); a fixed cap left
-#: every interior of more than a few thousand patches unconverged.
+#: converging solve shoots each patch about once or twice in a furnished room (measured to the
+#: default tolerance: RenderPark's office3 1.09 shots a patch, the classroom 1.76, graz 1.95)
+#: and up to five times in a small room (the Cornell box: 1,560 shots, 309 patches); a fixed
+#: cap left every interior of more than a few thousand patches unconverged.
 SHOTS_PER_PATCH = 4
 MIN_SHOTS = 5000
 _ADDRESS = re.compile(r"^(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]*):(\d{1,5})$")
