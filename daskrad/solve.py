@@ -74,11 +74,10 @@ class Solution:
 
 
 def unshot_rms(unshot: np.ndarray, patch_area: np.ndarray) -> float:
-    """Area-weighted RMS of the unshot radiosity over patches and channels."""
-    total = patch_area.sum()
-    if total <= 0:
-        return 0.0
-    return float(np.sqrt((patch_area[:, None] * unshot**2).sum() / (3.0 * total)))
+    """Area-weighted RMS of the unshot radiosity over patches and channels
+    (:func:`daskrad.kernels.update.unshot_rms`: one pass in patch order)."""
+    return float(update.unshot_rms(np.ascontiguousarray(unshot, np.float64),
+                                   np.ascontiguousarray(patch_area, np.float64)))
 
 
 def initial_solution(h: Hierarchy, emission: np.ndarray, reflected: np.ndarray | None = None
@@ -143,9 +142,13 @@ def next_batch(unshot: np.ndarray, patch_area: np.ndarray, k: int,
     k = min(k, int(np.count_nonzero(power > 0)))
     if k == 0:
         return np.zeros(0, np.int64)
-    # stable sort on -power: equal powers are taken in patch-id order, whatever the platform
-    order = np.argsort(-power, kind="stable")[:k]
-    return order
+    # the first k of a stable sort on -power (equal powers in patch-id order, whatever the
+    # platform), without sorting all P: those above the k-th largest power, then the ties at
+    # it by id (a full sort was a tenth of the client's time on 10,000 patches)
+    kth = power[np.argpartition(-power, k - 1)[k - 1]] if k < len(power) else power.min()
+    above = np.flatnonzero(power > kth)
+    chosen = np.concatenate([above, np.flatnonzero(power == kth)[:k - len(above)]])
+    return chosen[np.lexsort((chosen, -power[chosen]))].astype(np.int64)
 
 
 #: A shooter whose patch has sent and holds less than this share of the scene's light shoots
@@ -196,17 +199,27 @@ def row_keys(h: Hierarchy, sol: Solution, ids: np.ndarray, members=None,
 
 
 def apply_shot(h: Hierarchy, reflectance: np.ndarray, sol: Solution, shooter: int,
-               ids: np.ndarray, factors: np.ndarray) -> None:
+               ids: np.ndarray, factors: np.ndarray, scratch: tuple | None = None) -> float:
     """Apply one shot in place: distribute the shooter's unshot radiosity over ``ids``.
 
     ``factors[k]`` is ``F_ij`` from shooter patch ``i`` to element ``ids[k]``, with
     ``Σ factors ≤ 1`` (guaranteed by the form-factor task), so a shot never sends more energy
-    than the shooter holds. The arithmetic is :func:`daskrad.kernels.update.apply_shot`.
+    than the shooter holds. The arithmetic is :func:`daskrad.kernels.update.apply_shot`;
+    ``scratch``: its :func:`~daskrad.kernels.update.shot_scratch` for ``h``, made here when
+    not given (a solve passes one for all its shots). Returns the change of
+    ``Σ_p A_p |ΔB_p|²`` (:func:`daskrad.kernels.update.unshot_squares`).
     """
-    update.apply_shot(sol.radiosity, sol.unshot, int(shooter), ids, factors, reflectance,
-                      h.elem_area, h.elem_patch, h.patch_area)
+    if scratch is None:
+        scratch = update.shot_scratch(h.n_patches)
+    change = update.apply_shot(sol.radiosity, sol.unshot, int(shooter), ids, factors,
+                               reflectance, h.elem_area, h.elem_patch, h.patch_area, *scratch)
     sol.iteration += 1
+    return change
 
+
+#: Within a batch the solve checks the exact unshot RMS only once the RMS it follows shot by
+#: shot is below ``SURE ×`` the tolerance (:func:`solve`).
+SURE = 1.01
 
 #: Batches' worth of patches beyond those in flight whose rows :func:`solve` offers for
 #: prefetching: near the top of the ranking most will shoot within a few batches. On 2 Dask
@@ -256,6 +269,7 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
     batch_no = len(sol.history) + len(sol.queued)
     members = patch_members(h)
     n_patches = h.n_patches
+    scratch = update.shot_scratch(n_patches)
 
     def patches(keys):
         return np.asarray(keys, np.int64) % n_patches
@@ -284,10 +298,17 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
         if not done():
             queue(ids)          # the next batch computes while this one is applied
         rows = handle.result()
+        # the unshot RMS followed shot by shot from the change each shot reports, exact
+        # again at every batch; the exact pass decides wherever the followed value says the
+        # tolerance may be reached (it drifts from the exact one by round-off only, far
+        # within SURE), so the solve stops at the shot the exact test would
+        squares, area = update.unshot_squares(sol.unshot, h.patch_area)
+        near = (tolerance * reference * SURE) ** 2 * 3.0 * area
         for shooter, (elem_ids, factors) in zip(ids, rows, strict=True):
-            if done():
+            if sol.iteration >= max_iterations or (squares <= near and done()):
                 break
-            apply_shot(h, reflectance, sol, int(shooter), elem_ids, factors)
+            squares += apply_shot(h, reflectance, sol, int(shooter), elem_ids, factors,
+                                  scratch)
         rms = unshot_rms(sol.unshot, h.patch_area) / reference
         sol.seconds = time.perf_counter() - start
         sol.history.append((sol.iteration, rms, sol.seconds))

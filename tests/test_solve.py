@@ -179,3 +179,75 @@ def test_the_default_shot_cap_follows_the_patch_count():
     solved = solve_scene(scene, Settings(patch_size=0.5, element_size=0.25, resolution=32,
                                          tolerance=0.0, batch=64))
     assert solved.solution.iteration == MIN_SHOTS   # tolerance 0: the cap stops it
+
+
+def test_next_batch_is_the_head_of_a_stable_sort_by_power(rng):
+    # many equal powers (rounded), zeros and exclusions: the k chosen are the first k of a
+    # stable sort on -power (ties by patch id), whatever k
+    for _ in range(50):
+        n = int(rng.integers(1, 60))
+        unshot = np.round(rng.uniform(0.0, 3.0, (n, 3)) * rng.integers(0, 2, (n, 1)), 0)
+        area = rng.choice([0.5, 1.0, 2.0], n)
+        exclude = rng.choice(n, int(rng.integers(0, n + 1)), replace=False)
+        power = unshot.sum(axis=1) * area
+        power[exclude] = 0.0
+        expected = np.argsort(-power, kind="stable")
+        for k in (1, 3, n, n + 5):
+            got = solve.next_batch(unshot, area, k, exclude)
+            np.testing.assert_array_equal(got, expected[:min(k, np.count_nonzero(power > 0))])
+
+
+def test_a_shot_updates_only_its_patches_and_reports_the_change_of_the_squares(rng):
+    # the update kernel against a plain numpy statement of docs/design.md §4, bit for bit;
+    # the change it returns is the change of Σ A_p |ΔB_p|², and its scratch is left clean
+    from daskrad.kernels import update
+
+    n_elem, n_patch = 40, 9
+    elem_patch = np.sort(rng.integers(0, n_patch, n_elem)).astype(np.int32)
+    elem_patch[:n_patch] = np.arange(n_patch)
+    elem_area = rng.uniform(0.1, 1.0, n_elem)
+    patch_area = np.bincount(elem_patch, elem_area, minlength=n_patch)
+    rho = rng.uniform(0.0, 0.9, (n_elem, 3))
+    radiosity = rng.uniform(0.0, 1.0, (n_elem, 3))
+    unshot = rng.uniform(0.0, 1.0, (n_patch, 3))
+    shooter = 4
+    ids = np.flatnonzero(elem_patch != shooter)[::2].astype(np.int32)
+    factors = rng.uniform(0.0, 1.0 / len(ids), len(ids))
+    # reference: the sums in receiver order, per patch, added once
+    B, U = radiosity.copy(), unshot.copy()
+    dB = U[shooter].copy()
+    U[shooter] = 0.0
+    acc = np.zeros_like(U)
+    for j, f in zip(ids, factors, strict=True):
+        d = rho[j] * (f * (patch_area[shooter] / elem_area[j]) * dB)
+        B[j] += d
+        acc[elem_patch[j]] += d * (elem_area[j] / patch_area[elem_patch[j]])
+    U += acc
+    scratch = update.shot_scratch(n_patch)
+    before = update.unshot_squares(unshot, patch_area)[0]
+    change = update.apply_shot(radiosity, unshot, shooter, ids, factors, rho, elem_area,
+                               elem_patch, patch_area, *scratch)
+    np.testing.assert_array_equal(radiosity, B)
+    np.testing.assert_array_equal(unshot, U)
+    after = update.unshot_squares(unshot, patch_area)[0]
+    assert change == pytest.approx(after - before, rel=1e-12, abs=1e-15)
+    assert not scratch[0].any() and (scratch[1] == -1).all()
+    # the RMS kernel is numpy's formula
+    expected = np.sqrt((patch_area[:, None] * unshot**2).sum() / (3 * patch_area.sum()))
+    assert solve.unshot_rms(unshot, patch_area) == pytest.approx(expected, rel=1e-14)
+
+
+@pytest.mark.parametrize("tolerance", [2e-3, 7e-4])
+def test_the_solve_stops_at_the_shot_the_exact_rms_test_would(monkeypatch, tolerance):
+    # the solve follows the unshot RMS from each shot's change and asks the exact pass only
+    # near the tolerance (SURE); asking it at every shot (SURE inf) stops at the same shot,
+    # with the same bits
+    scene = box_scene(size=(1.0, 1.5, 2.0), diffuse=0.6, emission_per_face=0.1)
+    settings = Settings(patch_size=0.5, element_size=0.25, resolution=32, two_pass=False,
+                        tolerance=tolerance, batch=5)
+    followed = solve_scene(scene, settings).solution
+    monkeypatch.setattr(solve, "SURE", math.inf)
+    exact = solve_scene(scene, settings).solution
+    assert followed.iteration == exact.iteration and followed.converged
+    np.testing.assert_array_equal(followed.radiosity, exact.radiosity)
+    np.testing.assert_array_equal(followed.unshot, exact.unshot)
