@@ -55,10 +55,6 @@ TASK_SECONDS = 0.05
 #: such tasks a worker; giving its tasks a higher Dask priority measured the same.
 AHEAD_TASKS = 2
 
-#: Seconds between two looks of a waiting batch at the rows its task has put in the client's
-#: cache so far (workers in the client's process: :meth:`_Batch._found_early`).
-POLL_SECONDS = 0.0005
-
 #: Custom dashboard page module (``/daskrad``), added to the scheduler's HTTP routes.
 ROUTES_MODULE = "daskrad.distributed.dashboard"
 
@@ -76,8 +72,7 @@ class _Batch:
 
     def __init__(self, futures: list, stats: dict, groups: list[list[int]], ids: np.ndarray,
                  owner: dict, rows: dict, cache: shooting.RowCache, timed=None,
-                 fresh: set | None = None, shared: bool = False):
-        self.shared = shared
+                 fresh: set | None = None):
         self.futures = futures
         self.stats = stats
         self.groups = groups
@@ -92,12 +87,10 @@ class _Batch:
         t = time.perf_counter()
         out = [self.rows.get(k) for k in range(len(self.ids))]
         for n, (future, group) in enumerate(zip(self.futures, self.groups, strict=True)):
-            pids, slots = group
-            if self.shared and self._found_early(future, pids, slots, out):
-                continue
             where, rows, seconds = future.result()
             if self.timed is not None and n in self.fresh:
                 self.timed(len(rows), seconds)
+            pids, slots = group
             for p, k, row in zip(pids, slots, rows, strict=True):
                 if k >= 0:
                     out[k] = row
@@ -107,21 +100,6 @@ class _Batch:
         self.stats["wait"] += time.perf_counter() - t
         self.futures = []                  # release: the scheduler forgets the keys
         return out
-
-    def _found_early(self, future, pids: list, slots: list, out: list) -> bool:
-        """Whether this batch's rows of ``future``'s task are all in ``out`` before the task
-        ends (then filled in). Workers that are threads of this process put each row in the
-        client's own cache as they compute it, so a batch waits for its rows, not for the
-        rest of a task of rows computed ahead (~TASK_SECONDS of them), polling every
-        :data:`POLL_SECONDS`; False once the task is done (its answer has every row)."""
-        while not future.done():
-            for p, k in zip(pids, slots, strict=True):
-                if k >= 0 and out[k] is None and self.cache.has(p):
-                    out[k] = self.cache.get(p)
-            if all(k < 0 or out[k] is not None for k in slots):
-                return True
-            time.sleep(POLL_SECONDS)
-        return False
 
 
 class DaskExecutor:
@@ -263,7 +241,7 @@ class DaskExecutor:
             groups.append((ids[part].tolist(), part))
         self.stats["tasks"] += len(futures)
         return _Batch(futures, self.stats, groups, ids, self.owner, have, self.rows,
-                      self._timed, fresh, self.shared)
+                      self._timed, fresh)
 
     def _timed(self, rows: int, seconds: float) -> None:
         """A task computed ``rows`` rows in ``seconds``: the running mean per row."""
