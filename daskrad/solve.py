@@ -160,8 +160,10 @@ def next_batch(unshot: np.ndarray, patch_area: np.ndarray, k: int,
 #: (the cached one) for its re-shots. The share is of ``initial RMS unshot × scene area``, the
 #: initial unshot power's scale. The error such a shot makes is the penumbra sampling's
 #: (a few per cent of the shot's light, moved between receivers near an occluder, not lost)
-#: times light that is a small share of the total (:mod:`benchmarks.bench_speed`).
+#: times light that is a small share of the total (``benchmarks/bench_share.py``: the
+#: classroom's first 4,000 shots 1.70× faster, 0.3e-3 further from a converged solution).
 SAMPLE_SHARE = 1e-4        # the default of Settings.sample_share
+
 
 def patch_power(h: Hierarchy, radiosity: np.ndarray, ids: np.ndarray,
                 members: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
