@@ -303,6 +303,8 @@ class Store:
         """
         if self.group is None:
             self.open()
+        if self._resolve(h) and not self.resume:
+            self.group.update_attributes({"settings": _jsonable(self.settings.as_dict())})
         self.generation = int(h.generation)
         if self.resume:
             n = self.group.attrs.get("n_elements")
@@ -320,6 +322,14 @@ class Store:
         elif self.group.attrs.get("generation") != h.generation:
             self.write_hierarchy(h, reflectance)
         return sol
+
+    def _resolve(self, h: Hierarchy) -> bool:
+        """Resolve the default shot cap for ``h`` (:meth:`Settings.with_patches`); whether it
+        was the default (a run resolves it before it makes its store)."""
+        if self.settings.max_iterations is not None:
+            return False
+        self.settings = self.settings.with_patches(h.n_patches)
+        return True
 
     @_whole
     def _reopen(self) -> None:
@@ -443,6 +453,7 @@ class Store:
         none: :class:`StoreError`. The slot's arrays are checked against their sha256: a
         damaged last checkpoint is refused, a torn older slot is skipped.
         """
+        self._resolve(h)
         latest = self.group.attrs.get("checkpoint")
         if latest is None:
             return None
