@@ -368,6 +368,36 @@ def test_rows_prefetched_on_idle_workers_leave_the_solution_unchanged(cluster_cl
     np.testing.assert_array_equal(remote.unshot, local.unshot)
 
 
+def test_a_patch_offered_again_while_its_first_prefetch_lives_gets_its_own_rows(
+        cluster_client, tmp_path):
+    # a prefetched task of rows (1, 2, 3) lives on while 2 and 3 are still offered; 1 drops
+    # out and comes back at the head of a new task (1, 5, 6). That task must not be handed the
+    # first one's future (Client.submit answers a key it already has with its live future):
+    # the batch shooting 1, 5, 6 gets exactly the rows of 1, 5, 6
+    from daskrad.distributed.dask_executor import TASK_SECONDS
+    from daskrad.distributed.executor import InProcess
+    from daskrad.formfactor import shooting
+
+    scene = load_scene(CORNELL)
+    settings = CASES["cornell"]
+    h = preprocess(scene, settings).hierarchy
+    ctx = shooting.make_context(h, settings.method, settings.resolution)
+    store = Store(tmp_path / "again.zarr", settings).open()
+    executor = DaskExecutor(cluster_client, store)
+    executor.set_geometry(ctx, h.generation)
+    executor.row_seconds = TASK_SECONDS / 3             # three rows a prefetched task
+    executor.prefetch(np.array([1, 2, 3]))
+    executor.prefetch(np.array([2, 3]))
+    executor.prefetch(np.array([1, 5, 6, 2, 3]))
+    assert executor.stats["ahead"] == 2
+    ids = np.array([1, 5, 6])
+    rows = executor.shots(0, ids).result()
+    local = InProcess(ctx).shots(0, ids).result()
+    for a, b in zip(rows, local, strict=True):
+        for x, y in zip(a, b, strict=True):
+            np.testing.assert_array_equal(x, y)
+
+
 def test_a_cluster_started_while_the_scene_loads_is_closed_when_the_scene_is_bad(
         tmp_path, monkeypatch):
     # --workers N starts its LocalCluster of threads beside the loading and meshing; a scene

@@ -189,10 +189,11 @@ def test_row_cache_gives_the_bits_of_a_recomputation_within_its_budget():
 
 
 def test_row_cache_budget_holds_every_row_when_they_fit_else_a_share_of_memory():
-    # a row has at most E nonzeros of 12 bytes: P · E · 12 bytes hold every row; a process
-    # with less memory than 4× that gives the cache a quarter of its memory
+    # a row has at most E nonzeros of 12 bytes and a patch at most two rows (sampled and
+    # one-point): 2P · E · 12 bytes hold every row; a process with less memory than 4× that
+    # gives the cache a quarter of its memory
     h, ctx = _context(box_scene(emission_per_face=0.1))
-    everything = 12 * h.n_patches * h.n_elements
+    everything = 12 * 2 * h.n_patches * h.n_elements
     assert shooting.row_cache_bytes(ctx, 2**40) == everything
     assert shooting.row_cache_bytes(ctx, everything) == everything // 4
     # and the rows of a whole solve fit in the budget "everything" gives: all kept

@@ -142,6 +142,10 @@ class DaskExecutor:
         self._count_workers()
         self.dashboard_link = _dashboard(client, dashboard_host)
         self.stats = {"wait": 0.0, "tasks": 0, "ahead": 0}
+        # numbers every prefetched task's key: a patch dropped from the offer and offered again
+        # while its first task is still alive must get a new task, not that one's future
+        # (Client.submit hands back the live future of a key it already has)
+        self._ahead_count = 0
         self.geometry = None               # (generation, token) of the current geometry
         self._forget_prefetched()
         self._probed = False
@@ -279,7 +283,8 @@ class DaskExecutor:
         size = rows_per_task(self.row_seconds)
         for a in range(0, min(len(wanted), room * size), size):
             part = wanted[a:a + size]
-            key = f"formfactor-{generation}-ahead{part[0]}-{self.run}"
+            key = f"formfactor-{generation}-ahead{self._ahead_count}-{self.run}"
+            self._ahead_count += 1
             future = self.client.submit(
                 worker.shoot_task, self.store.path, generation, token,
                 np.array(part, np.int64), key=key, pure=False)
@@ -334,9 +339,15 @@ class DaskExecutor:
     def memory(self) -> dict:
         """Peak memory of the client and of each worker (MiB), and the row caches; with
         ``workers_in_client_process`` every worker's figures are the client process's."""
-        states = self.client.run(worker.state)
-        # workers that are threads of this process report its peak, and one row cache
-        return {"client_peak_mib": peak_mib(), **self.rows.usage(),
+        # workers that are threads of this process report its peak, and one row cache; a task
+        # still running (a prefetched row the solve no longer wanted) may add a row meanwhile,
+        # so the figures are read until the cache stood still around the workers' reports
+        for _ in range(10):
+            usage = self.rows.usage()
+            states = self.client.run(worker.state)
+            if self.rows.usage() == usage:
+                break
+        return {"client_peak_mib": peak_mib(), **usage,
                 "workers_in_client_process": self.shared,
                 "workers": [{k: states[a][k] for k in ("peak_mib", "row_cache_mib",
                                                        "row_cache_limit_mib")}

@@ -138,7 +138,9 @@ def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None =
     element of each triangle (the pipeline passes the mesh's own); built here when omitted.
     """
     formfactor.get_method(method)
-    formfactor.check_geometry(h.vertices, h.elem_verts)    # once: the rows trust it
+    # once: the rows trust both (receiver_average passes the patches as elements)
+    formfactor.check_geometry(h.vertices, h.elem_verts)
+    formfactor.check_geometry(h.vertices, h.patch_verts)
     if grid is None or tri_element is None:
         grid, tri_element = formfactor.element_grid(h.vertices, h.elem_verts)
 
@@ -394,10 +396,12 @@ ROW_BYTES_PER_FACTOR = 12
 
 def row_cache_bytes(ctx: ShootContext, memory: int) -> int:
     """The row cache's budget for ``ctx`` in a process with ``memory`` bytes: every row when
-    they fit (a row has at most ``E`` nonzeros, so ``12 · P · E`` bytes bound them all: the
-    Cornell box's 309 × 7,295 are 27 MB), else ``ROW_CACHE_SHARE`` of the memory. Rows beyond
-    it are computed again when their patch shoots again (the same bits, more time)."""
-    everything = ROW_BYTES_PER_FACTOR * len(ctx.patch_area) * len(ctx.elem_area)
+    they fit, else ``ROW_CACHE_SHARE`` of the memory. A row has at most ``E`` nonzeros and a
+    patch has at most two rows (sampled, and from one point once its power is low:
+    :func:`daskrad.solve.row_keys`), so ``12 · 2P · E`` bytes bound them all (the Cornell
+    box's 309 × 7,295: 54 MB). Rows beyond the budget are computed again when their patch
+    shoots again (the same bits, more time)."""
+    everything = ROW_BYTES_PER_FACTOR * 2 * len(ctx.patch_area) * len(ctx.elem_area)
     return int(max(0, min(everything, ROW_CACHE_SHARE * memory)))
 
 
