@@ -237,11 +237,13 @@ def test_a_shot_updates_only_its_patches_and_reports_the_change_of_the_squares(r
     assert solve.unshot_rms(unshot, patch_area) == pytest.approx(expected, rel=1e-14)
 
 
-@pytest.mark.parametrize("tolerance", [2e-3, 7e-4])
-def test_the_solve_stops_at_the_shot_the_exact_rms_test_would(monkeypatch, tolerance):
+@pytest.mark.parametrize("tolerance, mid_batch", [(2e-3, False), (7e-4, True)])
+def test_the_solve_stops_at_the_shot_the_exact_rms_test_would(monkeypatch, tolerance,
+                                                              mid_batch):
     # the solve follows the unshot RMS from each shot's change and asks the exact pass only
     # near the tolerance (SURE); asking it at every shot (SURE inf) stops at the same shot,
-    # with the same bits
+    # with the same bits, also where that shot lies inside a batch (7e-4: 416 shots of
+    # batches of 5)
     scene = box_scene(size=(1.0, 1.5, 2.0), diffuse=0.6, emission_per_face=0.1)
     settings = Settings(patch_size=0.5, element_size=0.25, resolution=32, two_pass=False,
                         tolerance=tolerance, batch=5)
@@ -249,5 +251,6 @@ def test_the_solve_stops_at_the_shot_the_exact_rms_test_would(monkeypatch, toler
     monkeypatch.setattr(solve, "SURE", math.inf)
     exact = solve_scene(scene, settings).solution
     assert followed.iteration == exact.iteration and followed.converged
+    assert (followed.iteration % settings.batch != 0) is mid_batch
     np.testing.assert_array_equal(followed.radiosity, exact.radiosity)
     np.testing.assert_array_equal(followed.unshot, exact.unshot)
