@@ -305,6 +305,18 @@ def test_lit_room_direct_pass_same_bits_in_process_and_on_two_workers(tmp_path, 
     assert_same_run(a, b)
 
 
+def _cornell_rows_executor(client, tmp_path):
+    """The Cornell box's shoot context and a Dask executor on ``client`` set to it."""
+    from daskrad.formfactor import shooting
+
+    settings = CASES["cornell"]
+    h = preprocess(load_scene(CORNELL), settings).hierarchy
+    ctx = shooting.make_context(h, settings.method, settings.resolution)
+    executor = DaskExecutor(client, Store(tmp_path / "rows.zarr", settings).open())
+    executor.set_geometry(ctx, h.generation)
+    return ctx, executor
+
+
 def test_a_patch_shoots_again_from_the_row_the_client_or_its_worker_kept(cluster_client,
                                                                          tmp_path):
     # issue 12: the client keeps the rows it received, so a re-shot is no task at all; a row
@@ -313,13 +325,7 @@ def test_a_patch_shoots_again_from_the_row_the_client_or_its_worker_kept(cluster
     from daskrad.distributed.executor import InProcess
     from daskrad.formfactor import shooting
 
-    scene = load_scene(CORNELL)
-    settings = CASES["cornell"]
-    h = preprocess(scene, settings).hierarchy
-    ctx = shooting.make_context(h, settings.method, settings.resolution)
-    store = Store(tmp_path / "rows.zarr", settings).open()
-    executor = DaskExecutor(cluster_client, store)
-    executor.set_geometry(ctx, h.generation)
+    ctx, executor = _cornell_rows_executor(cluster_client, tmp_path)
     cluster_client.run(worker.forget_rows)
     ids = np.arange(12)
     first = executor.shots(0, ids).result()
@@ -376,15 +382,8 @@ def test_a_patch_offered_again_while_its_first_prefetch_lives_gets_its_own_rows(
     # the batch shooting 1, 5, 6 gets exactly the rows of 1, 5, 6
     from daskrad.distributed.dask_executor import TASK_SECONDS
     from daskrad.distributed.executor import InProcess
-    from daskrad.formfactor import shooting
 
-    scene = load_scene(CORNELL)
-    settings = CASES["cornell"]
-    h = preprocess(scene, settings).hierarchy
-    ctx = shooting.make_context(h, settings.method, settings.resolution)
-    store = Store(tmp_path / "again.zarr", settings).open()
-    executor = DaskExecutor(cluster_client, store)
-    executor.set_geometry(ctx, h.generation)
+    ctx, executor = _cornell_rows_executor(cluster_client, tmp_path)
     executor.row_seconds = TASK_SECONDS / 3             # three rows a prefetched task
     executor.prefetch(np.array([1, 2, 3]))
     executor.prefetch(np.array([2, 3]))
