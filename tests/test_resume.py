@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from daskrad.distributed.dask_executor import DaskExecutor
-from daskrad.distributed.store import Store
+from daskrad.distributed.store import FORMAT, Store
 from daskrad.errors import OptionError
 from daskrad.io import read_exr
 from daskrad.output import Outputs
@@ -167,11 +167,20 @@ def test_a_store_from_before_sample_share_resumes_with_every_shot_sampled(uninte
     meta = out.with_suffix(".zarr") / "zarr.json"
     doc = json.loads(meta.read_text())
     del doc["attributes"]["settings"]["sample_share"]
+    doc["attributes"]["format"] = "daskrad-solution/3"          # a format it does not read
+    meta.write_text(json.dumps(doc))
+    with pytest.raises(OptionError, match="format 'daskrad-solution/3', this daskrad reads"):
+        run(CORNELL, out, SETTINGS.replace(sample_share=0.0), progress=False, resume=True)
+    doc["attributes"]["format"] = "daskrad-solution/4"
     meta.write_text(json.dumps(doc))
     with pytest.raises(OptionError, match=r"other settings \(sample_share=0\.0\)"):
         run(CORNELL, out, SETTINGS, progress=False, resume=True)
+    # refused: left as it was, a format-4 store an older daskrad still reads
+    assert json.loads(meta.read_text())["attributes"]["format"] == "daskrad-solution/4"
     report = run(CORNELL, out, SETTINGS.replace(sample_share=0.0), progress=False, resume=True)
     assert report["iterations"] == SETTINGS.max_iterations
+    # resumed by this daskrad, it may hold one-point rows' keys now: marked format 5
+    assert json.loads(meta.read_text())["attributes"]["format"] == FORMAT
     np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
 
 

@@ -58,7 +58,13 @@ from daskrad.settings import Settings
 from daskrad.solve import Solution
 
 #: The store's format; a store of another format is refused (resume, render, export).
-FORMAT = "daskrad-solution/4"
+#: 5: a queued batch may name one-point rows (row key ``P + p``: ``--sample-share``), which
+#: a reader of 4 would take for patch ids out of range.
+FORMAT = "daskrad-solution/5"
+#: The formats this daskrad reads: 4 is 5 without one-point rows (every queued key is a patch
+#: id) and without ``sample_share`` in its settings (:data:`SINCE`). A 4 store resumed is
+#: marked 5 before anything of the new run is written to it.
+READS = (FORMAT, "daskrad-solution/4")
 
 #: A task context's arrays are packed into one uint8 array ``blob`` of chunks this size
 #: (:meth:`Store.put_context`): zarr 3 costs ~5 ms to create an array, and a render context
@@ -341,10 +347,7 @@ class Store:
         except Exception as err:  # a damaged or foreign directory: the user's to fix
             raise StoreError(f"cannot open the solution store: {err}", self.given) from err
         attrs = self.group.attrs
-        if attrs.get("format") != FORMAT:
-            raise StoreError(f"not a daskrad solution store of this version (format "
-                             f"{attrs.get('format')!r}, this daskrad reads {FORMAT!r})",
-                             self.given)
+        _check_format(attrs.get("format"), self.given)
         old = {**SINCE, **attrs.get("settings", {})}
         new = _jsonable(self.settings.as_dict())
         changed = [k for k in SOLUTION_SETTINGS if old.get(k) != new.get(k)]
@@ -358,6 +361,8 @@ class Store:
             raise StoreError("cannot resume: the scene's " + " and ".join(parts)
                              + " changed since the store was written; run without --resume",
                              self.given)
+        if attrs.get("format") != FORMAT:    # every check passed: the run writes as 5
+            self.group.update_attributes({"format": FORMAT})
 
     @_whole
     def write_hierarchy(self, h: Hierarchy, reflectance: np.ndarray) -> None:
@@ -720,10 +725,7 @@ class Result:
         except Exception as err:
             raise StoreError(f"cannot open the solution store: {err}", self.given) from err
         self.attrs = self.group.attrs.asdict()
-        if self.attrs.get("format") != FORMAT:
-            raise StoreError(f"not a daskrad solution store of this version (format "
-                             f"{self.attrs.get('format')!r}, this daskrad reads {FORMAT!r})",
-                             self.given)
+        _check_format(self.attrs.get("format"), self.given)
         if not self.attrs.get("complete"):
             raise StoreError("the store holds no finished solution (the run was interrupted: "
                              "finish it with daskrad run ... --resume)", self.given)
@@ -745,3 +747,10 @@ class Result:
     def array(self, name: str) -> np.ndarray:
         """A public array, checked."""
         return read_checked(self.group, name, self.given)
+
+
+def _check_format(found, given) -> None:
+    """Refuse a store whose ``format`` attribute is not one of :data:`READS`."""
+    if found not in READS:
+        raise StoreError(f"not a daskrad solution store of this version (format {found!r}, "
+                         f"this daskrad reads {' or '.join(map(repr, READS))})", given)
