@@ -89,7 +89,7 @@ def main(argv: list[str] | None = None) -> list:
     parser.add_argument("--config", help="its TOML sidecar (camera)")
     parser.add_argument("--shots", type=int, default=None,
                         help="shots per solve (default: 1,500 for the Cornell box, 4,000 else)")
-    parser.add_argument("--shares", default="1e-4,3e-4",
+    parser.add_argument("--shares", default="0.01,0.03",
                         help="sample shares to compare with 0, comma-separated")
     parser.add_argument("--repeat", type=int, default=2)
     args = parser.parse_args(argv)

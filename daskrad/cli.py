@@ -156,8 +156,9 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     run.add_argument("--batch", type=_positive_int,
                      help=f"shooters per form-factor task (K) {_default('batch')}")
     run.add_argument("--sample-share", type=_nonneg_float,
-                     help="share of the scene's light below which a patch shoots from one "
-                          "point instead of its penumbra samples (0: always sampled) "
+                     help="share of the brightest patch's power (before the first shot) "
+                          "below which a patch shoots from one point instead of its penumbra "
+                          "samples (0: always sampled) "
                           f"{_default('sample_share')}")
     run.add_argument("--spp", type=_positive_int, help=f"samples per pixel {_default('spp')}")
     run.add_argument("--edge-spp", type=_nonneg_int,

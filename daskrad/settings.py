@@ -45,9 +45,9 @@ class Settings:
     max_iterations: int | None = None   # shots at most; None: SHOTS_PER_PATCH a patch, at
     #                                     least MIN_SHOTS (with_patches)
     batch: int = 8                      # K shooters per form-factor task
-    sample_share: float = 1e-4          # a shooter with less of the light than this shoots
-    #                                     from one point, not its penumbra samples (0: never;
-    #                                     solve.SAMPLE_SHARE gives the why)
+    sample_share: float = 0.03          # a shooter with less than this share of the
+    #                                     brightest patch's power shoots from one point, not
+    #                                     its penumbra samples (0: never; solve.SAMPLE_SHARE)
     spp: int = 4                        # stratified samples per pixel
     edge_spp: int = 64                  # samples of a pixel whose spp samples differ (an
     #                                     edge, render.EDGE_STEP); <= spp: never

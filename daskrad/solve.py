@@ -151,18 +151,23 @@ def next_batch(unshot: np.ndarray, patch_area: np.ndarray, k: int,
     return chosen[np.lexsort((chosen, -power[chosen]))].astype(np.int64)
 
 
-#: A shooter whose patch has sent and holds less than this share of the scene's light shoots
-#: from one point, not from the penumbra samples of
+#: A shooter whose patch has sent and holds less than this share of the brightest patch's
+#: power before the first shot shoots from one point, not from the penumbra samples of
 #: :func:`daskrad.formfactor.shooting.shooter_points` (a sixth of the work in a furnished
 #: room, where nearly every patch has an occluder near it). The measure is the patch's
 #: exitance power ``B̄_p · A_p`` (mean over channels): everything it ever shoots has arrived
 #: in ``B``, and ``B`` only grows, so a patch that once shot sampled keeps its sampled row
-#: (the cached one) for its re-shots. The share is of ``initial RMS unshot × scene area``, the
-#: initial unshot power's scale. The error such a shot makes is the penumbra sampling's
-#: (a few per cent of the shot's light, moved between receivers near an occluder, not lost)
-#: times light that is a small share of the total (``benchmarks/bench_share.py``: the
-#: classroom's first 4,000 shots 1.70× faster, 0.3e-3 further from a converged solution).
-SAMPLE_SHARE = 1e-4        # the default of Settings.sample_share
+#: (the cached one) for its re-shots. The gate is a share of the brightest patch (an emitter,
+#: or the most directly lit surface), not of the scene's whole light: with dozens of
+#: luminaires over 14,144 patches (RenderPark's classroom) no patch holds 1 % of the whole,
+#: and a share of the whole that speeds up a box lit by one light sent every shot of the
+#: classroom from one point (5.0e-2 from a converged solution). The error such a shot makes
+#: is the penumbra sampling's (a few per cent of the shot's light, moved between receivers
+#: near an occluder, not lost) times light that is small beside the brightest shooter's
+#: (``benchmarks/bench_share.py``, 4,000 shots: the classroom 1.7× faster than sampling
+#: every shot, 2.07e-3 from a converged solution against 1.72e-3; the Cornell box 2× faster
+#: at 6.7e-4 against 1.3e-4, its image against the path tracer unchanged).
+SAMPLE_SHARE = 0.03        # the default of Settings.sample_share
 
 
 def patch_power(h: Hierarchy, radiosity: np.ndarray, ids: np.ndarray,
@@ -187,15 +192,23 @@ def patch_members(h: Hierarchy) -> tuple[np.ndarray, np.ndarray]:
     return order, start
 
 
-def row_keys(h: Hierarchy, sol: Solution, ids: np.ndarray, members=None,
-             share: float | None = None) -> np.ndarray:
+def sample_gate(h: Hierarchy, initial: Solution, share: float | None = None) -> float:
+    """The exitance power below which a shooter's row is taken from one point:
+    ``share`` (default :data:`SAMPLE_SHARE`) of the brightest patch's power
+    (:func:`patch_power`) in ``initial``, the state before the first shot (:func:`start`; a
+    resumed solve passes that state again, not its checkpoint, so the gate is the same)."""
+    share = SAMPLE_SHARE if share is None else share
+    if share == 0.0 or h.n_patches == 0:
+        return 0.0
+    return share * float(patch_power(h, initial.radiosity, np.arange(h.n_patches)).max())
+
+
+def row_keys(h: Hierarchy, sol: Solution, ids: np.ndarray, gate: float,
+             members=None) -> np.ndarray:
     """``(k,) int64``: the row each shooter ``ids`` shoots through
     (:func:`daskrad.formfactor.shooting.row_key`): sampled when its exitance power
-    (:func:`patch_power`) is at least ``share`` of ``initial RMS unshot × scene area``
-    (default :data:`SAMPLE_SHARE`), else from one point."""
-    share = SAMPLE_SHARE if share is None else share
+    (:func:`patch_power`) is at least ``gate`` (:func:`sample_gate`), else from one point."""
     ids = np.asarray(ids, np.int64)
-    gate = share * sol.initial_rms * float(h.patch_area.sum())
     sampled = patch_power(h, sol.radiosity, ids, members) >= gate
     return shooting.row_key(ids, sampled, h.n_patches).astype(np.int64)
 
@@ -242,7 +255,7 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
           batch: int, tolerance: float, max_iterations: int,
           on_batch: Callable[[Solution], None] | None = None,
           prefetch: Callable[[np.ndarray], None] | None = None,
-          sample_share: float | None = None) -> Solution:
+          sample_gate: float = 0.0) -> Solution:
     """Shoot until the relative unshot RMS is below ``tolerance`` or ``max_iterations`` shots.
 
     ``submit(n, keys)`` starts the form-factor work of batch ``n`` (its shooters' row keys,
@@ -251,8 +264,8 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
     are in flight: batch ``n + 1`` is chosen (excluding batch ``n``'s shooters) before batch
     ``n`` is applied. ``on_batch`` runs after each applied batch (progress, checkpoints).
 
-    ``sample_share``: the share of the light below which a shooter's row is taken from one
-    point (:func:`row_keys`; None: :data:`SAMPLE_SHARE`).
+    ``sample_gate``: the exitance power below which a shooter's row is taken from one point
+    (:func:`sample_gate`, :func:`row_keys`; 0: every row sampled).
 
     ``prefetch(keys)``, when given, hears after each batch the row keys of the patches that
     rank next after those in flight (:data:`PREFETCH` batches' worth, most unshot power first,
@@ -288,7 +301,7 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
         room = max_iterations - sol.iteration - sum(len(p) for p, _ in pending)
         ids = next_batch(sol.unshot, h.patch_area, min(batch, room), exclude)
         if len(ids):
-            keys = row_keys(h, sol, ids, members, sample_share)
+            keys = row_keys(h, sol, ids, sample_gate, members)
             pending.append((keys, submit(batch_no, keys)))
             batch_no += 1
 
@@ -324,7 +337,7 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
             ahead = patches(np.concatenate([k for k, _ in pending]))
             room = min(PREFETCH * batch, max_iterations - sol.iteration - len(ahead))
             offer = next_batch(sol.unshot, h.patch_area, max(room, 0), ahead)
-            prefetch(row_keys(h, sol, offer, members, sample_share))
+            prefetch(row_keys(h, sol, offer, sample_gate, members))
         if on_batch is not None:
             on_batch(sol)
     if prefetch is not None:
@@ -369,8 +382,9 @@ def radiosity(light: DirectLight, settings: Settings, executor, begin: Solution 
         shooting.make_context(h, settings.method, settings.resolution, grid=mesh.grid,
                               tri_element=mesh.tri_element, edge_angle=settings.edge_angle),
         h.generation)
-    return solve(h, mesh.reflectance, start(light) if begin is None else begin,
+    initial = start(light)
+    return solve(h, mesh.reflectance, initial if begin is None else begin,
                  executor.shots, batch=settings.batch, tolerance=settings.tolerance,
                  max_iterations=settings.max_iterations, on_batch=on_batch,
                  prefetch=getattr(executor, "prefetch", None),
-                 sample_share=settings.sample_share)
+                 sample_gate=sample_gate(h, initial, settings.sample_share))

@@ -140,10 +140,11 @@ def test_near_receiver_sharing_an_edge_averages_F_ji_over_its_area(n):
                                rtol={1: 0.01, 2: 0.003}[n])
 
 
-def test_row_keys_sample_a_shooter_by_its_share_of_the_light_and_keep_it_as_B_grows(rng):
-    # sampled (key p) exactly when Σ_e∈p mean_rgb(B_e)·A_e >= share · initial RMS · area,
-    # one point (key P + p) below; B only grows in a solve, and a larger B never turns a
-    # sampled shooter back to one point (its cached sampled row serves every re-shot)
+def test_row_keys_sample_a_shooter_by_its_share_of_the_brightest_and_keep_it_as_B_grows(rng):
+    # the gate is share · the brightest patch's Σ_e∈p mean_rgb(B_e)·A_e before the first shot;
+    # sampled (key p) exactly when a shooter's power is at or above it, one point (key P + p)
+    # below; B only grows in a solve, and a larger B never turns a sampled shooter back to one
+    # point (its cached sampled row serves every re-shot)
     scene = box_scene(size=(1.0, 1.5, 2.0), diffuse=0.5, emission_per_face=0.1)
     settings = Settings(patch_size=0.5, element_size=0.25, resolution=32, max_iterations=0)
     h = solve_scene(scene, settings).hierarchy
@@ -152,17 +153,21 @@ def test_row_keys_sample_a_shooter_by_its_share_of_the_light_and_keep_it_as_B_gr
                          unshot=np.zeros((h.n_patches, 3)), initial_rms=0.3)
     power = np.bincount(h.elem_patch, radiosity.mean(axis=1) * h.elem_area,
                         minlength=h.n_patches)
+    np.testing.assert_allclose(solve.patch_power(h, radiosity, np.arange(h.n_patches)), power,
+                               rtol=1e-12)
+    share = float(np.median(power) / power.max())
+    gate = solve.sample_gate(h, sol, share)
+    assert gate == pytest.approx(np.median(power), rel=1e-12)
+    assert solve.sample_gate(h, sol, 0.0) == 0.0
     ids = rng.permutation(h.n_patches)
-    share = float(np.median(power)) / (0.3 * h.patch_area.sum())
-    keys = solve.row_keys(h, sol, ids, share=share)
-    sampled = power[ids] >= share * 0.3 * h.patch_area.sum()
+    keys = solve.row_keys(h, sol, ids, gate)
+    sampled = power[ids] >= gate
     assert 0 < sampled.sum() < len(ids)
     np.testing.assert_array_equal(keys, np.where(sampled, ids, ids + h.n_patches))
-    np.testing.assert_allclose(solve.patch_power(h, radiosity, ids), power[ids], rtol=1e-12)
     sol.radiosity = radiosity + rng.uniform(0.0, 0.1, radiosity.shape)
-    grown = solve.row_keys(h, sol, ids, share=share)
+    grown = solve.row_keys(h, sol, ids, gate)
     assert np.all(grown[sampled] == ids[sampled]) and (grown < h.n_patches).sum() >= sampled.sum()
-    assert np.all(solve.row_keys(h, sol, ids, share=0.0) == ids)    # 0: always sampled
+    assert np.all(solve.row_keys(h, sol, ids, 0.0) == ids)    # gate 0: always sampled
 
 
 def test_the_default_shot_cap_follows_the_patch_count():

@@ -30,9 +30,9 @@ with an occluder within ``PENUMBRA`` radii (:mod:`daskrad.kernels.blockers`: onl
 whose plane has the shooter on one side and part of the scene on the other can occlude) is
 sampled at stratified points and its row and visible fractions are area averages over them
 (:func:`shooter_points`). Shooters without one, every shooter of a convex room among them,
-keep the single centroid pass, bit for bit. A shot carrying little of the scene's light leaves
-from one point even so (:data:`daskrad.solve.SAMPLE_SHARE`): the solve asks for that row by
-another key (:func:`row_key`).
+keep the single centroid pass, bit for bit. A shot carrying little light beside the brightest
+patch's leaves from one point even so (:data:`daskrad.solve.SAMPLE_SHARE`): the solve asks
+for that row by another key (:func:`row_key`).
 """
 
 from __future__ import annotations
