@@ -152,13 +152,15 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     run.add_argument("--tolerance", type=_positive_float,
                      help=f"relative unshot RMS to stop at {_default('tolerance')}")
     run.add_argument("--max-iterations", type=_nonneg_int,
-                     help=f"shots at most {_default_shots()}")
+                     help=f"shots at most (0: direct light only, with the ambient term) "
+                          f"{_default_shots()}")
     run.add_argument("--batch", type=_positive_int,
                      help=f"shooters per form-factor task (K) {_default('batch')}")
     run.add_argument("--sample-share", type=_nonneg_float,
                      help="share of the brightest patch's power (before the first shot) "
                           "below which a patch shoots from one point instead of its penumbra "
-                          "samples (0: always sampled) "
+                          "samples (0: always sampled; 1 or more: all but the brightest "
+                          "patches from one point) "
                           f"{_default('sample_share')}")
     run.add_argument("--spp", type=_positive_int, help=f"samples per pixel {_default('spp')}")
     run.add_argument("--edge-spp", type=_nonneg_int,

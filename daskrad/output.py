@@ -143,20 +143,43 @@ class Outputs:
     @contextlib.contextmanager
     def lock(self):
         """Hold the lock of these outputs: a second run on the same ``-o`` is refused with one
-        line instead of both writing the same files."""
+        line instead of both writing the same files.
+
+        The lock is ``flock`` on the empty hidden file ``.NAME.lock``, removed again when the
+        run ends (well or not). Invariant: a run holds the lock only on the file that is at
+        the path *now*; a run that opened the file just before the holder removed it finds,
+        after taking the lock, that the path names another file (or none) and starts over, so
+        two runs never hold locks on different files at once."""
         path = self.exr.with_name(f".{self.exr.stem}.lock")
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
+        while True:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
+                os.close(fd)
                 raise OptionError("another daskrad run is writing these outputs; wait for "
                                   "it or choose another -o", self.exr) from None
-            yield self
-            # the file stays (hidden, empty): unlinking it would let a run that opened it
-            # just before take a lock on a file a third run no longer sees
-        finally:
+            if _same_file(fd, path):
+                break
             os.close(fd)
+        try:
+            yield self
+        finally:
+            # removed while still held; an empty file only (a lock file never holds bytes,
+            # so anything else at this name is not daskrad's)
+            if _same_file(fd, path) and os.fstat(fd).st_size == 0:
+                os.unlink(path)
+            os.close(fd)
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    """Whether ``path`` still names the open file ``fd``."""
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        return False
+    own = os.fstat(fd)
+    return (st.st_dev, st.st_ino) == (own.st_dev, own.st_ino)
 
 
 def unlit_warning(scene: Scene, light: DirectLight, sol: Solution) -> str | None:
@@ -180,10 +203,12 @@ def unlit_warning(scene: Scene, light: DirectLight, sol: Solution) -> str | None
 
 def report(scene: Scene, outputs: Outputs, settings: Settings, light: DirectLight,
            sol: Solution, image: Image, *, workers: int, seconds: dict,
-           warnings: list[str], memory: dict | None = None) -> dict:
+           warnings: list[str], memory: dict | None = None,
+           resumed_from: int | None = None) -> dict:
     """The run report (written as ``OUT.json``): counts, convergence, timings, settings;
     ``memory``: peak memory of the client and the workers, MiB, and the row caches' use
-    (the executor's ``memory()``)."""
+    (the executor's ``memory()``); ``resumed_from``: the shots of the checkpoint a
+    ``--resume`` continued from (``None`` for a new run)."""
     from daskrad.mesh import default_sizes
     from daskrad.mesh.refine import MIN_SIZE_DIVISOR
 
@@ -214,7 +239,10 @@ def report(scene: Scene, outputs: Outputs, settings: Settings, light: DirectLigh
                    # eq. 9: elements whose direct light the per-pixel pass recomputes
                    "perpixel_elements": image.perpixel_elements},
         "iterations": sol.iteration,
+        "resumed_from": resumed_from,
         "converged": sol.converged,
+        # seconds of solving since the first shot, summed over a run and the runs it resumed
+        # (``seconds.solve`` is this run's alone)
         "unshot_rms_history": [
             {"iteration": i, "relative_unshot_rms": r, "seconds": s} for i, r, s in sol.history],
         "ambient": image.ambient,

@@ -78,6 +78,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         watch = Watch(store, ex, settings, mesh.hierarchy, str(scene.path),
                       Preview(mesh, camera), then=bar)
         begin = store.begin(mesh.hierarchy, mesh.reflectance, solve.start(light))
+        resumed_from = begin.iteration if resume else None    # the solve may update begin
         sol = solve.radiosity(light, settings, ex, begin, on_batch=watch)         # 3
         watch.finish(sol)
         bar.close()
@@ -101,7 +102,8 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
     warnings = [*scene.warnings, *late]     # the loader's were printed as it read
     seconds["total"] = time.perf_counter() - start
     report = output.report(scene, outputs, settings, light, sol, image, workers=ex.workers,
-                           seconds=seconds, warnings=warnings, memory=memory)
+                           seconds=seconds, warnings=warnings, memory=memory,
+                           resumed_from=resumed_from)
     outputs.publish(Path(store.path))
     output.write(outputs, image, report, settings.exposure)                       # 5
     if replaced and not resume:

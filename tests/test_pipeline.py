@@ -180,7 +180,7 @@ def test_a_new_run_replaces_earlier_results_and_says_so(earlier, tmp_path):
     assert "replaced the earlier results c.exr, c.png, c.json, c.zarr" in proc.stderr
     assert read_exr(out / "c.exr").shape == (16, 16, 3)
     # the new store was swapped in whole; nothing partial is left beside it
-    assert sorted(p.name for p in out.iterdir() if p.name.startswith(".")) == [".c.lock"]
+    assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []
 
 
 def test_a_failed_run_keeps_the_earlier_results(earlier, tmp_path, monkeypatch):
@@ -208,6 +208,23 @@ def test_a_second_run_on_the_same_outputs_is_refused(tmp_path):
     assert proc.returncode == 2
     assert "another daskrad run is writing these outputs" in proc.stderr
     assert not (tmp_path / "c.exr").exists()
+
+
+def test_runs_that_end_leave_no_lock_file_and_keep_one_that_is_not_daskrads(tmp_path):
+    # a refused run (no store to resume) and a run of a missing scene take and drop the lock
+    for scene, args in ((CORNELL, ["--resume"]), (tmp_path / "none.obj", [])):
+        proc = subprocess.run([sys.executable, "-m", "daskrad", "run", str(scene), "-q",
+                               "-o", str(tmp_path / "c.exr"), *args],
+                              capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 2, proc.stderr
+        assert list(tmp_path.iterdir()) == [], proc.stderr
+    # a file of the lock's name with bytes in it is the user's: used, never removed
+    (tmp_path / ".c.lock").write_text("mine")
+    from daskrad.output import Outputs
+
+    with Outputs.of(tmp_path / "c.exr").lock():
+        pass
+    assert (tmp_path / ".c.lock").read_text() == "mine"
 
 
 def test_numbers_too_large_for_float64_are_one_line(tmp_path):
@@ -318,11 +335,16 @@ def test_a_resume_with_a_relative_output_keeps_its_store(tmp_path):
 
     first = cli("--tolerance", "1e-2")
     assert first.returncode == 0, first.stderr
+    shots = json.loads((tmp_path / "c.json").read_text())["iterations"]
+    assert json.loads((tmp_path / "c.json").read_text())["resumed_from"] is None
     again = cli("--tolerance", "5e-3", "--resume")
     assert again.returncode == 0, again.stderr
     from daskrad.output import is_store
 
     assert is_store(tmp_path / "c.zarr")
-    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == [".c.lock"]
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
     report = json.loads((tmp_path / "c.json").read_text())
     assert report["converged"] and report["unshot_rms_history"][-1]["relative_unshot_rms"] <= 5e-3
+    # continued from the last state of the first run a straight run passes through (its stop
+    # inside a batch is not one: the batch is applied whole in a longer run)
+    assert 0 < report["resumed_from"] <= shots < report["iterations"]

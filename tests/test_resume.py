@@ -147,7 +147,7 @@ def test_resume_refuses_other_settings_and_a_missing_store(uninterrupted, tmp_pa
 
     out = tmp_path / "other.exr"
     shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
-    with pytest.raises(OptionError, match="other settings.*batch"):
+    with pytest.raises(OptionError, match=r"other settings \(batch=8, this run 4\)"):
         run(CORNELL, out, SETTINGS.replace(batch=4), progress=False, resume=True)
     # fewer iterations than the store holds: a straight run would have stopped before it
     with pytest.raises(OptionError, match="cannot resume with .*max_iterations=100"):
@@ -173,7 +173,7 @@ def test_a_store_from_before_sample_share_resumes_with_every_shot_sampled(uninte
         run(CORNELL, out, SETTINGS.replace(sample_share=0.0), progress=False, resume=True)
     doc["attributes"]["format"] = "daskrad-solution/4"
     meta.write_text(json.dumps(doc))
-    with pytest.raises(OptionError, match=r"other settings \(sample_share=0\.0\)"):
+    with pytest.raises(OptionError, match=r"other settings \(sample_share=0\.0, this run 0\.03\)"):
         run(CORNELL, out, SETTINGS, progress=False, resume=True)
     # refused: left as it was, a format-4 store an older daskrad still reads
     assert json.loads(meta.read_text())["attributes"]["format"] == "daskrad-solution/4"

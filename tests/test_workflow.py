@@ -128,9 +128,10 @@ def test_a_looser_stop_or_an_answer_changing_option_is_refused_and_changes_nothi
     code, _, err = daskrad(capsys, "run", SCENE, "-o", out, *COARSE, "--tolerance", "0.1",
                            "--resume")
     one_line_error(code, err, "cannot resume with tolerance=0.1", "run without --resume")
-    for option, value, named in (("--batch", "4", "batch=8"),
-                                 ("--area-method", "rays", "area_method='hemisphere'"),
-                                 ("--subdivide", "0", "subdivide=0.5")):
+    for option, value, named in (("--batch", "4", "batch=8, this run 4"),
+                                 ("--area-method", "rays",
+                                  "area_method='hemisphere', this run 'rays'"),
+                                 ("--subdivide", "0", "subdivide=0.5, this run 0.0")):
         code, _, err = daskrad(capsys, "run", SCENE, "-o", out, *COARSE, "--tolerance", "0.01",
                                option, value, "--resume")
         one_line_error(code, err, "other settings", named)

@@ -353,7 +353,8 @@ class Store:
         changed = [k for k in SOLUTION_SETTINGS if old.get(k) != new.get(k)]
         if changed:
             raise StoreError("cannot resume: the store was written with other settings ("
-                             + ", ".join(f"{k}={old.get(k)!r}" for k in changed)
+                             + ", ".join(f"{k}={old.get(k)!r}, this run {new.get(k)!r}"
+                                         for k in changed)
                              + "); use the same options or run without --resume", self.given)
         stored = attrs.get("inputs")
         if self.inputs is not None and stored != self.inputs:
