@@ -13,6 +13,9 @@ caps the solve) at ``--size`` pixels, two comparisons, alternated ``--repeat`` t
   without shadow rays, against tracing every light at every hit. The images are compared:
   pixels that changed, the relative RMS of the change and the largest change relative to
   the pixel.
+- **hidden lights** (:func:`daskrad.render.hidden_lights`): the same tiles with the lights
+  proved hidden from an element skipped, against the light modes without them (every hidden
+  light traced). Both give the same image (checked bit for bit).
 
 Seconds are wall time in this process, one thread. ``python -m benchmarks.bench_perpixel
 [--scene PATH --config TOML] [--size W H] [--shots N] [--repeat N]``; writes
@@ -34,7 +37,7 @@ from numba import njit
 
 from daskrad import direct, render, solve
 from daskrad.distributed.executor import InProcess
-from daskrad.kernels.direct import hash01
+from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_TRACE, hash01
 from daskrad.kernels.gather import cosine_direction
 from daskrad.kernels.grid import aim_fan, closest_hit_fan, closest_hit_one, new_fan
 from daskrad.kernels.pathtrace import tangent_frame
@@ -112,16 +115,19 @@ def measure(path: Path, config: Path | None, size: tuple[int, int], shots: int,
                                                          strict=True))
     viewed = render.for_view(ctx)
     tracing = replace(viewed, elem_light_mode=None)
+    modes = viewed.elem_light_mode
+    unproved = (replace(viewed, elem_light_mode=np.where(
+        modes == LIGHT_HIDDEN, LIGHT_TRACE, modes).astype(np.int8))
+        if modes is not None else viewed)
     images = {}
-    tiles = {"trace": [], "modes": []}
+    tiles = {"trace": [], "visible": [], "modes": []}
     for _ in range(repeat):
-        for name, c in (("trace", tracing), ("modes", viewed)):
+        for name, c in (("trace", tracing), ("visible", unproved), ("modes", viewed)):
             t = time.perf_counter()
             images[name] = render.render(c)
             tiles[name].append(time.perf_counter() - t)
-    a, b = images["trace"], images["modes"]
+    a, b = images["trace"], images["visible"]
     diff = np.abs(a - b).max(axis=2)
-    modes = viewed.elem_light_mode
     pp = viewed.elem_perpixel if viewed.elem_perpixel is not None else np.zeros(0, bool)
     return {
         "scene": path.name, "elements": int(len(ctx.elem_normal)),
@@ -135,7 +141,12 @@ def measure(path: Path, config: Path | None, size: tuple[int, int], shots: int,
         "perpixel_pairs_taken_visible": int((modes[pp] == 1).sum()) if modes is not None else 0,
         "tiles_trace_s": float(np.median(tiles["trace"])),
         "tiles_modes_s": float(np.median(tiles["modes"])),
-        "tiles_speedup": float(np.median(tiles["trace"]) / np.median(tiles["modes"])),
+        "tiles_visible_s": float(np.median(tiles["visible"])),
+        "tiles_speedup": float(np.median(tiles["trace"]) / np.median(tiles["visible"])),
+        "perpixel_pairs_proved_hidden": (int((modes[pp] == LIGHT_HIDDEN).sum())
+                                         if modes is not None else 0),
+        "hidden_speedup": float(np.median(tiles["visible"]) / np.median(tiles["modes"])),
+        "hidden_same_bits": bool(np.array_equal(images["visible"], images["modes"])),
         "pixels": int(diff.size), "pixels_changed": int((diff > 0).sum()),
         "change_relative_rms": float(np.sqrt(((a - b) ** 2).mean()) / math.sqrt((a**2).mean())),
         "change_largest_relative": float((diff / np.maximum(a.max(axis=2), 1e-300)).max()),
@@ -157,14 +168,19 @@ def main(argv: list[str] | None = None) -> dict:
              for p, c in zip(args.scene, configs, strict=True)]
     print(f"{'scene':<18}{'gather rays':>12}{'plain':>8}{'fan':>7}{'x':>6}  "
           f"{'pp pairs':>9}{'visible':>8}{'trace':>8}{'modes':>7}{'x':>6}"
-          f"{'changed':>9}{'rel RMS':>9}{'largest':>9}")
+          f"{'changed':>9}{'rel RMS':>9}{'largest':>9}  {'hidden':>8}{'tiles':>7}{'x':>6}")
     for r in rows:
         print(f"{r['scene']:<18}{r['gather_rays']:>12,}{r['gather_plain_s']:>8.2f}"
               f"{r['gather_fan_s']:>7.2f}{r['gather_speedup']:>6.2f}  "
               f"{r['perpixel_light_pairs']:>9,}{r['perpixel_pairs_taken_visible']:>8,}"
-              f"{r['tiles_trace_s']:>8.2f}{r['tiles_modes_s']:>7.2f}{r['tiles_speedup']:>6.2f}"
+              f"{r['tiles_trace_s']:>8.2f}{r['tiles_visible_s']:>7.2f}"
+              f"{r['tiles_speedup']:>6.2f}"
               f"{r['pixels_changed']:>9,}{r['change_relative_rms']:>9.1e}"
-              f"{r['change_largest_relative']:>9.1e}")
+              f"{r['change_largest_relative']:>9.1e}  "
+              f"{r['perpixel_pairs_proved_hidden']:>8,}{r['tiles_modes_s']:>7.2f}"
+              f"{r['hidden_speedup']:>6.2f}")
+        if not r["hidden_same_bits"]:
+            print(f"  {r['scene']}: skipping the proved hidden lights changed the image!")
         if not r["gather_same_hits"]:
             print(f"  {r['scene']}: the fan's gather hits differ from the plain walk's!")
     RESULTS.mkdir(exist_ok=True)

@@ -114,9 +114,10 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
     ks : (3,) float64, ns : float
         Phong ``Ks`` and ``Ns``; when ``ks`` is all 0 no specular work is done.
     modes : (M,) int8
-        Per area light: ``LIGHT_TRACE`` (shadow rays) or ``LIGHT_VISIBLE`` (taken as wholly
+        Per area light: ``LIGHT_TRACE`` (shadow rays), ``LIGHT_VISIBLE`` (taken as wholly
         visible: the rays are not cast, so ``V = 1``; the same bits as tracing them where no
-        ray would have been blocked).
+        ray would have been blocked) or ``LIGHT_HIDDEN`` (skipped: the same bits as tracing
+        them where every ray would have been blocked).
     out_spec : (3,) float64
         Receives the Phong radiance ``Ks (Ns+2)/(2π) max(0, r·v)^Ns dH`` summed over lights
         (``r`` the light direction mirrored about ``n``).
@@ -185,6 +186,10 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
     inv_s = 1.0 / samples
     for m in range(em_corners.shape[0]):
         out_class[m] = LIGHT_TRACE
+        if modes[m] == LIGHT_HIDDEN:
+            # proved hidden from the point (daskrad.kernels.hidden): every ray would be
+            # blocked and the light add +0.0; its class is left LIGHT_TRACE
+            continue
         trace = modes[m] != LIGHT_VISIBLE
         cnt = em_count[m]
         en = em_normal[m]

@@ -45,8 +45,9 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
     pl_pos ... em_area, samples
         The lights, as :func:`daskrad.kernels.direct.irradiance_one` takes them.
     modes : (n, M) int8
-        Per hit and area light, trace its shadow rays or take it as wholly visible
-        (:data:`daskrad.kernels.direct.LIGHT_TRACE`, ``LIGHT_VISIBLE``).
+        Per hit and area light, trace its shadow rays, take it as wholly visible or skip it
+        as proved hidden (:data:`daskrad.kernels.direct.LIGHT_TRACE`, ``LIGHT_VISIBLE``,
+        ``LIGHT_HIDDEN``).
 
     Returns ``H (n, 3)``, the irradiance (W per unit area), and ``S (n, 3)``, the Phong
     radiance ``Σ_lights Ks (Ns+2)/(2π) max(0, r·v)^Ns dH``.
