@@ -410,19 +410,27 @@ def test_a_cluster_started_while_the_scene_loads_is_closed_when_the_scene_is_bad
     bad = tmp_path / "bad.obj"
     bad.write_text("v 0 0 0\nv 1 0 0\nf 1 2 7\n")
     before = {t.ident for t in threading.enumerate()}
-    seen: list[str] = []
+    started = []
+    early = daskrad.run.start_early
+
+    def start(settings):
+        started.append(early(settings))
+        return started[-1]
 
     def load(*args, **kwargs):
         time.sleep(1.0)                     # a scene that takes a while: the cluster starts
-        seen.extend(t.name for t in threading.enumerate() if t.ident not in before)
         return load_scene(*args, **kwargs)
 
+    monkeypatch.setattr(daskrad.run, "start_early", start)
     monkeypatch.setattr(daskrad.run, "load_scene", load)
     with pytest.raises(SceneError, match="bad.obj"):
         run(bad, tmp_path / "o.exr", CASES["cornell"].replace(workers=2,
                                                               dashboard="127.0.0.1:0"),
             progress=False)
-    assert seen, "no cluster was started while the scene loaded"
+    # (its threads may all have been started by earlier tests' clusters, and its starting
+    # thread ends within the second: so the cluster is followed, not the threads)
+    assert started and started[0] is not None, "no cluster was started beside the loading"
+    assert started[0].get().client.status == "closed"
     deadline = time.monotonic() + 10
     while time.monotonic() < deadline:
         left = [t.name for t in threading.enumerate() if t.ident not in before and t.is_alive()]
