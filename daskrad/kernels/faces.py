@@ -23,6 +23,7 @@ from typing import NamedTuple
 import numpy as np
 
 from daskrad.kernels._jit import jit
+from daskrad.kernels.geometry import within_edges
 from daskrad.kernels.grid import closest_hit_one
 
 
@@ -55,23 +56,7 @@ def _in_face(faces, f, x, y, z, nx, ny, nz, eps):
     """Whether the point ``(x, y, z)`` in face ``f``'s plane (unit normal ``n``) lies in one of
     its pieces, within ``eps`` of its edges (a point on an edge two pieces share is in both)."""
     for q in range(faces.start[f], faces.start[f + 1]):
-        c = faces.corners[q]
-        m = faces.count[q]
-        inside = True
-        for a in range(m):
-            b = a + 1 if a + 1 < m else 0
-            ux = c[b, 0] - c[a, 0]
-            uy = c[b, 1] - c[a, 1]
-            uz = c[b, 2] - c[a, 2]
-            wx = x - c[a, 0]
-            wy = y - c[a, 1]
-            wz = z - c[a, 2]
-            # (u × w) · n: the signed distance from the edge's line times |u|
-            s = (uy * wz - uz * wy) * nx + (uz * wx - ux * wz) * ny + (ux * wy - uy * wx) * nz
-            if s < -eps * np.sqrt(ux * ux + uy * uy + uz * uz):
-                inside = False
-                break
-        if inside:
+        if within_edges(faces.corners[q], faces.count[q], x, y, z, nx, ny, nz, -eps):
             return True
     return False
 

@@ -142,3 +142,23 @@ def scene_diagonal(vertices):
         lo2 = min(lo2, vertices[i, 2])
         hi2 = max(hi2, vertices[i, 2])
     return np.sqrt((hi0 - lo0) ** 2 + (hi1 - lo1) ** 2 + (hi2 - lo2) ** 2)
+
+
+@jit
+def within_edges(c, m, x, y, z, nx, ny, nz, margin):
+    """Whether the point ``(x, y, z)``, in the plane of the convex polygon ``c[:m] (m, 3)``
+    (counter-clockwise about the unit normal ``n``), lies at least ``margin`` (a length)
+    inside every edge's line; a negative ``margin`` lets it lie that far outside. NaN: no."""
+    for a in range(m):
+        b = a + 1 if a + 1 < m else 0
+        ux = c[b, 0] - c[a, 0]
+        uy = c[b, 1] - c[a, 1]
+        uz = c[b, 2] - c[a, 2]
+        wx = x - c[a, 0]
+        wy = y - c[a, 1]
+        wz = z - c[a, 2]
+        # (u × w) · n: the signed distance from the edge's line times |u|
+        s = (uy * wz - uz * wy) * nx + (uz * wx - ux * wz) * ny + (ux * wy - uy * wx) * nz
+        if not s >= margin * np.sqrt(ux * ux + uy * uy + uz * uz):
+            return False
+    return True

@@ -39,6 +39,7 @@ import numpy as np
 from numba import prange
 
 from daskrad.kernels._jit import jit, jit_parallel
+from daskrad.kernels.geometry import within_edges
 from daskrad.kernels.grid import closest_hit_one
 
 
@@ -84,19 +85,9 @@ def patch_blocks(corners, n_corners, light, n_light, pv, n_pv, off, delta):
             cx = corners[i, 0] + t * (light[j, 0] - corners[i, 0])
             cy = corners[i, 1] + t * (light[j, 1] - corners[i, 1])
             cz = corners[i, 2] + t * (light[j, 2] - corners[i, 2])
-            for a in range(n_pv):
-                b = a + 1 if a + 1 < n_pv else 0
-                ex = pv[b, 0] - pv[a, 0]
-                ey = pv[b, 1] - pv[a, 1]
-                ez = pv[b, 2] - pv[a, 2]
-                wx = cx - pv[a, 0]
-                wy = cy - pv[a, 1]
-                wz = cz - pv[a, 2]
-                # (e × w) · n: the crossing's distance inside edge a, times |e|
-                inside = ((ey * wz - ez * wy) * nx + (ez * wx - ex * wz) * ny
-                          + (ex * wy - ey * wx) * nz)
-                if not inside > delta * np.sqrt(ex * ex + ey * ey + ez * ez):
-                    return False
+            # inside by delta (strictly beyond the ray test's outward edge tolerance)
+            if not within_edges(pv, n_pv, cx, cy, cz, nx, ny, nz, delta):
+                return False
     return True
 
 
