@@ -771,9 +771,10 @@ def with_light_modes(ctx: RenderContext, h, classes: np.ndarray | None,
             or classes.shape[1] != len(lights.emitter_corners)
             or len(h.elem_verts) * classes.shape[1] > LIGHT_MODES_MAX):
         return ctx
-    modes = light_modes(h.elem_verts, classes, tvertices)
+    cls = _corner_classes(classes, tvertices)
+    modes = _modes(h.elem_verts, cls)
     if ctx.elem_perpixel is not None:
-        hidden = _every_corner(h.elem_verts, _corner_classes(classes, tvertices), LIGHT_HIDDEN)
+        hidden = _every_corner(h.elem_verts, cls, LIGHT_HIDDEN)
         hidden &= ctx.elem_perpixel[:, None]
         modes[hidden_lights(ctx, h, hidden)] = LIGHT_HIDDEN
     return replace(ctx, elem_light_mode=modes)
@@ -858,7 +859,12 @@ def light_modes(elem_verts: np.ndarray, classes: np.ndarray,
     A T-vertex that disagrees with an end of its edge sends both ends' elements back to
     tracing that light (:func:`_corner_classes`).
     """
-    visible = _every_corner(elem_verts, _corner_classes(classes, tvertices), LIGHT_VISIBLE)
+    return _modes(elem_verts, _corner_classes(classes, tvertices))
+
+
+def _modes(elem_verts: np.ndarray, cls: np.ndarray) -> np.ndarray:
+    """:func:`light_modes` of the corner classes ``cls`` (:func:`_corner_classes`)."""
+    visible = _every_corner(elem_verts, cls, LIGHT_VISIBLE)
     out = np.full(visible.shape, LIGHT_TRACE, np.int8)
     out[visible] = LIGHT_VISIBLE
     return out

@@ -39,7 +39,7 @@ import numpy as np
 from numba import prange
 
 from daskrad.kernels._jit import jit, jit_parallel
-from daskrad.kernels.geometry import within_edges
+from daskrad.kernels.geometry import orthonormal_basis, within_edges
 from daskrad.kernels.grid import closest_hit_one
 
 
@@ -119,18 +119,8 @@ def polygon_outlines(vertices, patch_verts, patch_area, patch_normal, order, sta
         if b == a:
             continue
         nrm = patch_normal[order[a]]
-        # a basis of the plane
-        if abs(nrm[0]) < 0.9:
-            ux, uy, uz = 0.0, -nrm[2], nrm[1]
-        else:
-            ux, uy, uz = nrm[2], 0.0, -nrm[0]
-        un = np.sqrt(ux * ux + uy * uy + uz * uz)
-        ux /= un
-        uy /= un
-        uz /= un
-        vx = nrm[1] * uz - nrm[2] * uy
-        vy = nrm[2] * ux - nrm[0] * uz
-        vz = nrm[0] * uy - nrm[1] * ux
+        # (u, v, n) right-handed: counter-clockwise in (u, v) is counter-clockwise about n
+        ux, uy, uz, vx, vy, vz = orthonormal_basis(nrm[0], nrm[1], nrm[2])
         k = 0
         area = 0.0
         for i in range(a, b):
