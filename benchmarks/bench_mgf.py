@@ -16,8 +16,13 @@ The scenes are not in the repository (docs/references.md): ``--root DIR`` is a f
 ``<name>/<name>.toml`` (``cube``, ``office2``, ``office3``, ``classroom``, ``graz``). Without
 ``--root`` the benchmark says so and measures nothing.
 
-``python -m benchmarks.bench_mgf --root DIR [--scene NAME ...] [--passes N] [--shots N|default]``;
-writes ``benchmarks/results/mgf.json`` (``mgf_converged.json`` with ``--shots default``).
+``--relaxation W,W`` runs every scene at each overshooting factor (``--relaxation`` of
+``daskrad run``; default: the run's own), all in each pass, one row per scene and factor, and
+writes ``mgf_relaxation.json`` instead.
+
+``python -m benchmarks.bench_mgf --root DIR [--scene NAME ...] [--passes N] [--shots N|default]
+[--relaxation W,W]``; writes ``benchmarks/results/mgf.json`` (``mgf_converged.json`` with
+``--shots default``).
 """
 
 from __future__ import annotations
@@ -44,11 +49,14 @@ STEPS = ("direct", "solve", "render", "total")
 
 
 def one_run(root: Path, name: str, workers: int, out: Path,
-            shots: int | None = MAX_ITERATIONS) -> dict:
+            shots: int | None = MAX_ITERATIONS, relaxation: float | None = None) -> dict:
     """One ``daskrad run`` of scene ``name`` in a process of its own; the report's figures.
-    ``shots``: ``--max-iterations`` (None: the run's default)."""
+    ``shots``: ``--max-iterations``, ``relaxation``: ``--relaxation`` (None: the run's
+    default)."""
     exr = out / f"{name}-{workers}.exr"
     cap = [] if shots is None else ["--max-iterations", str(shots)]
+    if relaxation is not None:
+        cap += ["--relaxation", str(relaxation)]
     cmd = [sys.executable, "-m", "daskrad", "run", str(root / SCENES[name]),
            "--config", str(root / name / f"{name}.toml"), "--width", str(SIZE[0]),
            "--height", str(SIZE[1]), *cap, "--workers", str(workers), "-q", "-o", str(exr)]
@@ -62,19 +70,22 @@ def one_run(root: Path, name: str, workers: int, out: Path,
 
 
 def measure(root: Path, names: list[str], passes: int,
-            shots: int | None = MAX_ITERATIONS) -> list[dict]:
-    runs = {(n, w): [] for n in names for w in (0, 2)}
+            shots: int | None = MAX_ITERATIONS,
+            relaxations: tuple = (None,)) -> list[dict]:
+    runs = {(n, w, x): [] for n in names for w in (0, 2) for x in relaxations}
     with tempfile.TemporaryDirectory() as tmp:
         for _ in range(passes):
             for name in names:
-                for workers in (0, 2):
-                    runs[name, workers].append(one_run(root, name, workers, Path(tmp),
-                                                       shots))
+                for x in relaxations:
+                    for workers in (0, 2):
+                        runs[name, workers, x].append(one_run(root, name, workers, Path(tmp),
+                                                              shots, x))
     rows = []
-    for name in names:
-        solo, two = runs[name, 0], runs[name, 2]
+    for name, x in ((n, x) for n in names for x in relaxations):
+        solo, two = runs[name, 0, x], runs[name, 2, x]
         rows.append({
-            "scene": Path(SCENES[name]).name, "elements": solo[0]["elements"],
+            "scene": Path(SCENES[name]).name, "relaxation": x,
+            "elements": solo[0]["elements"],
             "shots": solo[0]["shots"], "converged": solo[0]["converged"],
             **{f"in_process_{k}": float(np.median([r[k] for r in solo])) for k in STEPS},
             **{f"two_workers_{k}": float(np.median([r[k] for r in two])) for k in STEPS},
@@ -93,6 +104,9 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--passes", type=int, default=2)
     parser.add_argument("--shots", default=str(MAX_ITERATIONS),
                         help="--max-iterations of every run, or 'default' (converging)")
+    parser.add_argument("--relaxation", default=None,
+                        help="overshooting factors to run each scene at, comma-separated "
+                             "(default: the run's own)")
     args = parser.parse_args([] if argv is None else argv)
     if args.root is None:
         print("bench_mgf: no --root given (the MGF scenes are not in the repository); "
@@ -100,16 +114,21 @@ def main(argv: list[str] | None = None) -> dict:
         return {}
     names = [n for n in SCENES if n in args.scene] if args.scene else list(SCENES)
     shots = None if args.shots == "default" else int(args.shots)
-    rows = measure(args.root, names, max(1, args.passes), shots)
-    print(f"{'scene':<14}{'elements':>9}{'shots':>7}  in-process: direct  solve render  total"
-          f"   2 workers  ratio")
+    relaxations = (tuple(float(x) for x in args.relaxation.split(","))
+                   if args.relaxation else (None,))
+    rows = measure(args.root, names, max(1, args.passes), shots, relaxations)
+    print(f"{'scene':<14}{'omega':>6}{'elements':>9}{'shots':>7}  in-process: direct  solve "
+          f"render  total   2 workers: solve  total  ratio")
     for r in rows:
-        print(f"{r['scene']:<14}{r['elements']:>9,}{r['shots']:>7}  "
+        omega = "" if r["relaxation"] is None else f"{r['relaxation']:g}"
+        print(f"{r['scene']:<14}{omega:>6}{r['elements']:>9,}{r['shots']:>7}  "
               f"{r['in_process_direct']:>18.1f}{r['in_process_solve']:>7.1f}"
               f"{r['in_process_render']:>7.1f}{r['in_process_total']:>7.1f}"
-              f"{r['two_workers_total']:>12.1f}{r['ratio_two_workers']:>7.2f}")
+              f"{r['two_workers_solve']:>18.1f}{r['two_workers_total']:>7.1f}"
+              f"{r['ratio_two_workers']:>7.2f}")
     RESULTS.mkdir(exist_ok=True)
-    name = "mgf_converged.json" if shots is None else "mgf.json"
+    name = ("mgf_relaxation.json" if args.relaxation
+            else "mgf_converged.json" if shots is None else "mgf.json")
     (RESULTS / name).write_text(json.dumps(rows, indent=2) + "\n")
     return {"mgf": rows}
 

@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> list:
     parser.add_argument("--shares", default="0.01,0.03",
                         help="sample shares to compare with 0, comma-separated")
     parser.add_argument("--repeat", type=int, default=2)
-    args = parser.parse_args(argv)
+    args = parser.parse_args([] if argv is None else argv)
     shares = [float(s) for s in args.shares.split(",")]
     scenes = [(CORNELL, None, args.shots or 1500)]
     if args.scene:
@@ -116,4 +116,4 @@ def main(argv: list[str] | None = None) -> list:
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])

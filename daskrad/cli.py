@@ -162,6 +162,11 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
                           "samples (0: always sampled; 1 or more: all but the brightest "
                           "patches from one point) "
                           f"{_default('sample_share')}")
+    run.add_argument("--relaxation", type=_positive_float, metavar="OMEGA",
+                     help="overshooting, in [1, 2): a shot sends up to OMEGA times the "
+                          "patch's unshot light (in proportion to what its receivers "
+                          "reflect) and later shots take back the excess (1: plain "
+                          f"progressive refinement) {_default('relaxation')}")
     run.add_argument("--spp", type=_positive_int, help=f"samples per pixel {_default('spp')}")
     run.add_argument("--edge-spp", type=_nonneg_int,
                      help="samples of a pixel whose --spp samples, with its neighbours', "

@@ -48,6 +48,8 @@ class Settings:
     sample_share: float = 0.03          # a shooter with less than this share of the
     #                                     brightest patch's power shoots from one point, not
     #                                     its penumbra samples (0: never; solve.SAMPLE_SHARE)
+    relaxation: float = 1.3             # overshooting factor ω of a shot (1: plain
+    #                                     progressive refinement; solve.RELAXATION)
     spp: int = 4                        # stratified samples per pixel
     edge_spp: int = 64                  # samples of a pixel whose spp samples differ (an
     #                                     edge, render.EDGE_STEP); <= spp: never
@@ -123,6 +125,9 @@ class Settings:
             integer("max_iterations", 0)
         integer("batch", 1, 1 << 16)
         positive("sample_share", zero=True)
+        positive("relaxation")
+        if not 1.0 <= self.relaxation < 2.0:
+            bad("relaxation", "must be in [1, 2)")
         integer("spp", 1, MAX_SPP)
         integer("edge_spp", 0, MAX_SPP)
         if self.workers is not None:      # None: chosen from the scene's size

@@ -94,6 +94,8 @@ BAD = {
     "dashboard": dict(dashboard="notaport"),
     "scheduler": dict(scheduler="notanaddress"),
     "edge angle": dict(edge_angle=120.0),
+    "relaxation low": dict(relaxation=0.9),
+    "relaxation high": dict(relaxation=2.0),
 }
 
 
@@ -110,6 +112,8 @@ def test_defaults_are_valid_and_stated_once():
     from daskrad.formfactor import DEFAULT_RESOLUTION
     assert DEFAULT_RESOLUTION == Settings().resolution
     assert direct.AREA_SAMPLES == Settings().area_samples
+    assert solve.SAMPLE_SHARE == Settings().sample_share
+    assert solve.RELAXATION == Settings().relaxation
 
 
 @pytest.fixture(scope="module")
@@ -137,7 +141,8 @@ def cli_run(*args: str) -> subprocess.CompletedProcess:
                                     ["--dashboard", "notaport"],
                                     ["--scheduler", "notanaddress"],
                                     ["--element-size", "0.01"],
-                                    ["--processes", "--workers", "0"]])
+                                    ["--processes", "--workers", "0"],
+                                    ["--relaxation", "2"]])
 def test_bad_option_fails_at_once_and_leaves_earlier_outputs(earlier, tmp_path, option):
     # validated before the scene is loaded and before the old store is touched
     shutil.copytree(earlier, tmp_path / "out")

@@ -149,6 +149,8 @@ def test_resume_refuses_other_settings_and_a_missing_store(uninterrupted, tmp_pa
     shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
     with pytest.raises(OptionError, match=r"other settings \(batch=8, this run 4\)"):
         run(CORNELL, out, SETTINGS.replace(batch=4), progress=False, resume=True)
+    with pytest.raises(OptionError, match=r"other settings \(relaxation=1\.3, this run 1\.0\)"):
+        run(CORNELL, out, SETTINGS.replace(relaxation=1.0), progress=False, resume=True)
     # fewer iterations than the store holds: a straight run would have stopped before it
     with pytest.raises(OptionError, match="cannot resume with .*max_iterations=100"):
         run(CORNELL, out, SETTINGS.replace(max_iterations=100), progress=False, resume=True)
@@ -181,6 +183,27 @@ def test_a_store_from_before_sample_share_resumes_with_every_shot_sampled(uninte
     assert report["iterations"] == SETTINGS.max_iterations
     # resumed by this daskrad, it may hold one-point rows' keys now: marked format 5
     assert json.loads(meta.read_text())["attributes"]["format"] == FORMAT
+    np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
+
+
+def test_a_store_from_before_overshooting_resumes_with_plain_shots(uninterrupted, tmp_path):
+    # a format-5 store was solved with plain progressive refinement (relaxation 1): it
+    # resumes only with --relaxation 1, and is marked 6 once resumed
+    import shutil
+
+    out = tmp_path / "older.exr"
+    shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
+    meta = out.with_suffix(".zarr") / "zarr.json"
+    doc = json.loads(meta.read_text())
+    del doc["attributes"]["settings"]["relaxation"]
+    doc["attributes"]["format"] = "daskrad-solution/5"
+    meta.write_text(json.dumps(doc))
+    with pytest.raises(OptionError, match=r"other settings \(relaxation=1\.0, this run 1\.3\)"):
+        run(CORNELL, out, SETTINGS, progress=False, resume=True)
+    assert json.loads(meta.read_text())["attributes"]["format"] == "daskrad-solution/5"
+    report = run(CORNELL, out, SETTINGS.replace(relaxation=1.0), progress=False, resume=True)
+    assert report["iterations"] == SETTINGS.max_iterations
+    assert json.loads(meta.read_text())["attributes"]["format"] == FORMAT == "daskrad-solution/6"
     np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
 
 

@@ -43,11 +43,13 @@ def _safety_ok(results, furnace: bool):
 # --- 1. degenerate geometry -----------------------------------------------------------------
 
 DEGENERATE = sc.degenerate_scenes()
+@pytest.mark.parametrize("relaxation", [1.0, solve.RELAXATION])
 @pytest.mark.parametrize("case", [c for c in DEGENERATE if c != "flipped normal"])
-def test_degenerate_geometry_keeps_the_invariants(case):
-    # finite, non-negative radiosity; unshot power never grows; the energy ledger holds to
-    # 1e-3 (measured: round-off, < 1e-14); B within the bound (furnace: within its 1 %)
-    results = sc.safety(case, DEGENERATE[case])
+def test_degenerate_geometry_keeps_the_invariants(case, relaxation):
+    # finite, non-negative radiosity; unshot power never grows (ρ = 0.5: overshot too,
+    # stress.unshot_contracts); the energy ledger holds to 1e-3 (measured: round-off,
+    # < 1e-14); B within the bound (furnace: within its 1 %)
+    results = sc.safety(case, DEGENERATE[case], sc.BOX.replace(relaxation=relaxation))
     _safety_ok(results, furnace=True)
 
 
@@ -228,9 +230,11 @@ def _check_random(scene, closed: bool):
     s = sc.box_settings_for(scene)
     h, reflectance, sol, powers = sc.solve_recorded(scene, s)
     assert np.isfinite(sol.radiosity).all() and np.isfinite(sol.unshot).all()
-    assert (sol.radiosity >= 0).all() and (sol.unshot >= 0).all()
-    # unshot power never grows: a shot removes ΔB_i A_i and gives back at most rho_max of it
-    assert (np.diff(powers, axis=0) <= 1e-12 * powers[0].max()).all()
+    assert (sol.radiosity >= 0).all()
+    # unshot power never grows where no shot can make it (stress.unshot_contracts: plain
+    # shots; overshot, with every ρ up to 0.66)
+    if sc.unshot_contracts(s.relaxation, float(reflectance.max())):
+        assert sc.unshot_growth(powers) <= 1e-12
     assert sc.ledger_error(scene, h, reflectance, sol, closed=closed) <= 1e-3
     return h, sol
 

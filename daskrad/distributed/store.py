@@ -60,11 +60,14 @@ from daskrad.solve import Solution
 #: The store's format; a store of another format is refused (resume, render, export).
 #: 5: a queued batch may name one-point rows (row key ``P + p``: ``--sample-share``), which
 #: a reader of 4 would take for patch ids out of range.
-FORMAT = "daskrad-solution/5"
-#: The formats this daskrad reads: 4 is 5 without one-point rows (every queued key is a patch
-#: id) and without ``sample_share`` in its settings (:data:`SINCE`). A 4 store resumed is
-#: marked 5 before anything of the new run is written to it.
-READS = (FORMAT, "daskrad-solution/4")
+#: 6: the unshot radiosity may be below zero (overshot: ``--relaxation``), which a reader of 5
+#: would never shoot again.
+FORMAT = "daskrad-solution/6"
+#: The formats this daskrad reads: 5 is 6 solved without overshooting (no ``relaxation`` in
+#: its settings: :data:`SINCE`), 4 is 5 without one-point rows (every queued key is a patch
+#: id) and without ``sample_share``. An older store resumed is marked 6 before anything of the
+#: new run is written to it.
+READS = (FORMAT, "daskrad-solution/5", "daskrad-solution/4")
 
 #: A task context's arrays are packed into one uint8 array ``blob`` of chunks this size
 #: (:meth:`Store.put_context`): zarr 3 costs ~5 ms to create an array, and a render context
@@ -80,10 +83,10 @@ CHUNK_ROWS = 1 << 16
 #: Settings that change the solution; a resume refuses a store written with other values.
 SOLUTION_SETTINGS = ("method", "resolution", "edge_angle", "patch_size", "element_size",
                      "batch", "seed", "two_pass", "area_samples", "area_method", "subdivide",
-                     "min_element_size", "sample_share")
+                     "min_element_size", "sample_share", "relaxation")
 #: Solution settings added since the format began, with the value a store written before them
 #: was solved with (such a store resumes with that value).
-SINCE = {"sample_share": 0.0}
+SINCE = {"sample_share": 0.0, "relaxation": 1.0}
 #: The stopping criteria: a resume may change them (:meth:`Store.load_checkpoint` picks a
 #: checkpoint a straight run with the new criteria passes through).
 STOPPING = ("tolerance", "max_iterations")
@@ -362,7 +365,7 @@ class Store:
             raise StoreError("cannot resume: the scene's " + " and ".join(parts)
                              + " changed since the store was written; run without --resume",
                              self.given)
-        if attrs.get("format") != FORMAT:    # every check passed: the run writes as 5
+        if attrs.get("format") != FORMAT:    # every check passed: the run writes as 6
             self.group.update_attributes({"format": FORMAT})
 
     @_whole

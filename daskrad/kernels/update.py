@@ -14,14 +14,20 @@ from daskrad.kernels._jit import jit
 
 @jit
 def apply_shot(radiosity, unshot, shooter, ids, factors, reflectance, elem_area, elem_patch,
-               patch_area, acc, touched, order):
-    """Shoot patch ``shooter``'s unshot radiosity through the row ``(ids, factors)``, in place.
+               patch_area, acc, touched, order, relaxation):
+    """Shoot patch ``shooter``'s unshot radiosity ``ΔB_i``, overshot, through the row
+    ``(ids, factors)``, in place.
 
-    For every receiver ``j = ids[k]``: ``ΔB_j = ρ_j · ΔB_i · F_ij · A_i / A_j`` is added to
-    ``radiosity[j]`` and ``ΔB_j · A_j / A_p`` to the unshot radiosity of its patch ``p``; the
-    shooter's unshot is zeroed first. Patch sums are accumulated in receiver order into
-    ``acc`` and then added once to each patch the row reached, so the result does not depend
-    on anything but the row. Only the row's patches are visited (not all ``P``: on 10,000
+    The shot sends ``w ΔB_i`` per channel, ``w = 1 + (ω − 1) · Σ_k F_ik ρ_k`` with ``ω`` the
+    ``relaxation``: the overshoot is in proportion to the share of the shot its receivers
+    reflect, the light that can come back (none, and the shot is a plain one: nothing is left
+    to take back where no receiver reflects). For every receiver ``j = ids[k]``:
+    ``ΔB_j = ρ_j · w ΔB_i · F_ij · A_i / A_j`` is added to ``radiosity[j]`` and
+    ``ΔB_j · A_j / A_p`` to the unshot radiosity of its patch ``p``; the shooter's unshot
+    becomes ``(1 − w) ΔB_i`` first (exactly 0 for plain shooting, ``ω = 1``; below zero when
+    overshot: :func:`daskrad.solve.solve`). Patch sums are accumulated in receiver
+    order into ``acc`` and then added once to each patch the row reached, so the result does
+    not depend on anything but the row. Only the row's patches are visited (not all ``P``: on 10,000
     patches that pass was most of a re-shot's time).
 
     radiosity : (E, 3) float64, unshot : (P, 3) float64 (updated)
@@ -33,14 +39,31 @@ def apply_shot(radiosity, unshot, shooter, ids, factors, reflectance, elem_area,
     Returns the change of ``Σ_p A_p |ΔB_p|²`` (:func:`unshot_squares`), so the solve can
     follow the unshot RMS shot by shot without a pass over every patch.
     """
-    dB0 = unshot[shooter, 0]
-    dB1 = unshot[shooter, 1]
-    dB2 = unshot[shooter, 2]
-    unshot[shooter, 0] = 0.0
-    unshot[shooter, 1] = 0.0
-    unshot[shooter, 2] = 0.0
+    # the share of the shot the receivers reflect, per channel (ρ-weighted row sum)
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    if relaxation != 1.0:
+        for k in range(len(ids)):
+            j = ids[k]
+            s0 += factors[k] * reflectance[j, 0]
+            s1 += factors[k] * reflectance[j, 1]
+            s2 += factors[k] * reflectance[j, 2]
+    over = relaxation - 1.0
+    u0 = unshot[shooter, 0]
+    u1 = unshot[shooter, 1]
+    u2 = unshot[shooter, 2]
+    dB0 = (1.0 + over * s0) * u0    # what is shot; exactly the unshot when relaxation is 1
+    dB1 = (1.0 + over * s1) * u1
+    dB2 = (1.0 + over * s2) * u2
+    unshot[shooter, 0] = u0 - dB0
+    unshot[shooter, 1] = u1 - dB1
+    unshot[shooter, 2] = u2 - dB2
     area_i = patch_area[shooter]
-    change = -area_i * (dB0 * dB0 + dB1 * dB1 + dB2 * dB2)
+    change = area_i * (unshot[shooter, 0] * unshot[shooter, 0]
+                       + unshot[shooter, 1] * unshot[shooter, 1]
+                       + unshot[shooter, 2] * unshot[shooter, 2]
+                       - (u0 * u0 + u1 * u1 + u2 * u2))
     n_touched = 0
     for k in range(len(ids)):
         j = ids[k]
