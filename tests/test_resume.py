@@ -158,52 +158,60 @@ def test_resume_refuses_other_settings_and_a_missing_store(uninterrupted, tmp_pa
         run(CORNELL, tmp_path / "none.exr", SETTINGS, progress=False, resume=True)
 
 
-def test_a_store_from_before_sample_share_resumes_with_every_shot_sampled(uninterrupted,
-                                                                          tmp_path):
-    # a store written before --sample-share was solved with every row sampled (share 0): it
-    # resumes with --sample-share 0, and another share is refused by name
+def _older_store(uninterrupted: Path, tmp_path: Path, drop: tuple, fmt: str):
+    """``(out, its store's zarr.json)``: a copy of the uninterrupted run's store as an older
+    daskrad wrote it, without the settings ``drop`` and marked format ``fmt``."""
     import shutil
 
     out = tmp_path / "older.exr"
     shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
     meta = out.with_suffix(".zarr") / "zarr.json"
     doc = json.loads(meta.read_text())
-    del doc["attributes"]["settings"]["sample_share"]
-    doc["attributes"]["format"] = "daskrad-solution/3"          # a format it does not read
+    for name in drop:
+        del doc["attributes"]["settings"][name]
+    doc["attributes"]["format"] = fmt
     meta.write_text(json.dumps(doc))
+    return out, meta
+
+
+def _format(meta: Path) -> str:
+    return json.loads(meta.read_text())["attributes"]["format"]
+
+
+def test_a_store_from_before_sample_share_resumes_with_every_shot_sampled(uninterrupted,
+                                                                          tmp_path):
+    # a store written before --sample-share (and before --relaxation) was solved with every
+    # row sampled (share 0) and plain shots: it resumes with --sample-share 0 --relaxation 1,
+    # and another share is refused by name
+    out, meta = _older_store(uninterrupted, tmp_path, ("sample_share", "relaxation"),
+                             "daskrad-solution/3")          # a format it does not read
+    older = SETTINGS.replace(sample_share=0.0, relaxation=1.0)
     with pytest.raises(OptionError, match="format 'daskrad-solution/3', this daskrad reads"):
-        run(CORNELL, out, SETTINGS.replace(sample_share=0.0), progress=False, resume=True)
+        run(CORNELL, out, older, progress=False, resume=True)
+    doc = json.loads(meta.read_text())
     doc["attributes"]["format"] = "daskrad-solution/4"
     meta.write_text(json.dumps(doc))
     with pytest.raises(OptionError, match=r"other settings \(sample_share=0\.0, this run 0\.03\)"):
-        run(CORNELL, out, SETTINGS, progress=False, resume=True)
+        run(CORNELL, out, older.replace(sample_share=0.03), progress=False, resume=True)
     # refused: left as it was, a format-4 store an older daskrad still reads
-    assert json.loads(meta.read_text())["attributes"]["format"] == "daskrad-solution/4"
-    report = run(CORNELL, out, SETTINGS.replace(sample_share=0.0), progress=False, resume=True)
+    assert _format(meta) == "daskrad-solution/4"
+    report = run(CORNELL, out, older, progress=False, resume=True)
     assert report["iterations"] == SETTINGS.max_iterations
-    # resumed by this daskrad, it may hold one-point rows' keys now: marked format 5
-    assert json.loads(meta.read_text())["attributes"]["format"] == FORMAT
+    # resumed by this daskrad, it may hold one-point rows' keys now: marked format 6
+    assert _format(meta) == FORMAT
     np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
 
 
 def test_a_store_from_before_overshooting_resumes_with_plain_shots(uninterrupted, tmp_path):
     # a format-5 store was solved with plain progressive refinement (relaxation 1): it
     # resumes only with --relaxation 1, and is marked 6 once resumed
-    import shutil
-
-    out = tmp_path / "older.exr"
-    shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
-    meta = out.with_suffix(".zarr") / "zarr.json"
-    doc = json.loads(meta.read_text())
-    del doc["attributes"]["settings"]["relaxation"]
-    doc["attributes"]["format"] = "daskrad-solution/5"
-    meta.write_text(json.dumps(doc))
+    out, meta = _older_store(uninterrupted, tmp_path, ("relaxation",), "daskrad-solution/5")
     with pytest.raises(OptionError, match=r"other settings \(relaxation=1\.0, this run 1\.3\)"):
         run(CORNELL, out, SETTINGS, progress=False, resume=True)
-    assert json.loads(meta.read_text())["attributes"]["format"] == "daskrad-solution/5"
+    assert _format(meta) == "daskrad-solution/5"
     report = run(CORNELL, out, SETTINGS.replace(relaxation=1.0), progress=False, resume=True)
     assert report["iterations"] == SETTINGS.max_iterations
-    assert json.loads(meta.read_text())["attributes"]["format"] == FORMAT == "daskrad-solution/6"
+    assert _format(meta) == FORMAT == "daskrad-solution/6"
     np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
 
 
