@@ -192,9 +192,10 @@ SAMPLE_SHARE = 0.03        # the default of Settings.sample_share
 #: shots, Cornell box 1,563 → 944, lit room 332 → 254, RenderPark's cube 1,711 → 1,246,
 #: office2 5,302 → 3,752, office3 11,266 → 9,782; the distance of B from a solve converged
 #: 30× further, 9.7e-5 → 3.0e-5, 1.2e-4 → 9.4e-5, 2.4e-4 → 9.7e-5, 2.1e-4 → 1.2e-4,
-#: 1.42e-3 → 1.34e-3. Solve seconds 0.95–1.11× (first shots, the rows, are most of a solve,
-#: and overshooting does not spare them). 1.2 spares as many shots, less accurately; from 1.5
-#: it shoots about as often as 1.
+#: 1.42e-3 → 1.34e-3. Solve seconds 0.90–1.03 × plain (first shots, the rows, are most of a
+#: solve, and overshooting does not spare them). 1.2 spares as many shots and is less
+#: accurate but in the lit room; 1.5 spares fewer. The ambient term, a signed mean of the
+#: unshot radiosity, may come out negative for an unconverged solve.
 RELAXATION = 1.3
 
 
