@@ -16,6 +16,11 @@ caps the solve) at ``--size`` pixels, two comparisons, alternated ``--repeat`` t
 - **hidden lights** (:func:`daskrad.render.hidden_lights`): the same tiles with the lights
   proved hidden from an element skipped, against the light modes without them (every hidden
   light traced). Both give the same image (checked bit for bit).
+- **shadow probes** (:data:`daskrad.render.SHADOW_PROBES`): the same tiles (light modes and
+  all) when a traced area light is first probed from its four corner strata, against tracing
+  every stratum. Probing is not exact, so both images are compared with a reference of the
+  same tiles at 4× the shadow rays (8 × 8 a light, no probes; rendered once): relative RMS
+  error and the pixels more than 5 % off.
 
 Seconds are wall time in this process, one thread. ``python -m benchmarks.bench_perpixel
 [--scene PATH --config TOML] [--size W H] [--shots N] [--repeat N]``; writes
@@ -126,6 +131,7 @@ def measure(path: Path, config: Path | None, size: tuple[int, int], shots: int,
             t = time.perf_counter()
             images[name] = render.render(c)
             tiles[name].append(time.perf_counter() - t)
+    probes = _probes(viewed, repeat)
     a, b = images["trace"], images["visible"]
     diff = np.abs(a - b).max(axis=2)
     pp = viewed.elem_perpixel if viewed.elem_perpixel is not None else np.zeros(0, bool)
@@ -150,7 +156,44 @@ def measure(path: Path, config: Path | None, size: tuple[int, int], shots: int,
         "pixels": int(diff.size), "pixels_changed": int((diff > 0).sum()),
         "change_relative_rms": float(np.sqrt(((a - b) ** 2).mean()) / math.sqrt((a**2).mean())),
         "change_largest_relative": float((diff / np.maximum(a.max(axis=2), 1e-300)).max()),
+        **probes,
     }
+
+
+def _probes(ctx: render.RenderContext, repeat: int) -> dict:
+    """The tiles of ``ctx`` with and without shadow probes, alternated ``repeat`` times, and
+    each image's error against a reference at 4× the shadow rays without probes."""
+    def tiles(c, probing):
+        keep = render.SHADOW_PROBES
+        render.SHADOW_PROBES = probing
+        try:
+            t = time.perf_counter()
+            return render.render(c), time.perf_counter() - t
+        finally:
+            render.SHADOW_PROBES = keep
+
+    if ctx.lights is None:
+        return {}
+    seconds = {True: [], False: []}
+    images = {}
+    for _ in range(repeat):
+        for probing in (False, True):
+            images[probing], t = tiles(ctx, probing)
+            seconds[probing].append(t)
+    ref, _ = tiles(replace(ctx, lights=replace(ctx.lights, samples=2 * ctx.lights.samples)),
+                   False)
+    scale = math.sqrt((ref**2).mean())
+
+    def error(image):
+        off = np.abs(image - ref).max(axis=2) / np.maximum(ref.max(axis=2), 1e-300)
+        return float(np.sqrt(((image - ref) ** 2).mean()) / scale), int((off > 0.05).sum())
+
+    (full_rms, full_off), (probe_rms, probe_off) = error(images[False]), error(images[True])
+    return {"tiles_every_stratum_s": float(np.median(seconds[False])),
+            "tiles_probes_s": float(np.median(seconds[True])),
+            "probes_speedup": float(np.median(seconds[False]) / np.median(seconds[True])),
+            "every_stratum_error_rms": full_rms, "every_stratum_pixels_off_5pct": full_off,
+            "probes_error_rms": probe_rms, "probes_pixels_off_5pct": probe_off}
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -183,6 +226,14 @@ def main(argv: list[str] | None = None) -> dict:
             print(f"  {r['scene']}: skipping the proved hidden lights changed the image!")
         if not r["gather_same_hits"]:
             print(f"  {r['scene']}: the fan's gather hits differ from the plain walk's!")
+    print(f"\n{'shadow probes':<18}{'every':>8}{'probes':>8}{'x':>6}  "
+          f"{'rel RMS error (every / probes)':>31}  {'pixels > 5 % (every / probes)':>30}")
+    for r in rows:
+        if "probes_speedup" in r:
+            print(f"{r['scene']:<18}{r['tiles_every_stratum_s']:>8.2f}"
+                  f"{r['tiles_probes_s']:>8.2f}{r['probes_speedup']:>6.2f}  "
+                  f"{r['every_stratum_error_rms']:>15.2e} / {r['probes_error_rms']:<13.2e}  "
+                  f"{r['every_stratum_pixels_off_5pct']:>14,} / {r['probes_pixels_off_5pct']:<13,}")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "perpixel.json").write_text(json.dumps(rows, indent=2) + "\n")
     return {"perpixel": rows}

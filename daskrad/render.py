@@ -558,6 +558,18 @@ def _radiance(ctx: RenderContext, o: np.ndarray, d: np.ndarray, seeds: np.ndarra
     return L
 
 
+#: The per-pixel pass probes each area light it traces from the four corner strata of its
+#: ``s × s`` shadow rays first (``s ≥ 3``, :func:`daskrad.kernels.direct.irradiance_one`'s
+#: ``probe``) and takes the light as wholly free or hidden when they agree: most traced pairs
+#: of a hit lie wholly in light or in shadow even on an element its corners disagree on. What
+#: it misses is a shadow or a gap that passes between the corner strata (a thin occluder seen
+#: whole inside the light's outline). Measured (``bench_perpixel``, 192 × 144, both against
+#: the same tiles at 4× the shadow rays without probes): RenderPark's ``office3`` tiles
+#: 29.2 → 18.6 s, relative RMS error 1.48e-3 → 1.49e-3, pixels more than 5 % off 1,076 →
+#: 1,081 of 27,648; the Cornell box 0.50 → 0.46 s, 7.35e-4 → 7.37e-4, 59 → 60.
+SHADOW_PROBES = True
+
+
 def _direct_at(ctx: RenderContext, lights: Lights, p: np.ndarray, elem: np.ndarray,
                views: np.ndarray, seeds: np.ndarray, ks: np.ndarray):
     """:func:`direct_at_hits` at hits ``p (n, 3)`` on elements ``elem (n,)``: hits on an
@@ -576,7 +588,7 @@ def _direct_at(ctx: RenderContext, lights: Lights, p: np.ndarray, elem: np.ndarr
             np.ascontiguousarray(views[sel]), np.ascontiguousarray(seeds[sel]),
             np.ascontiguousarray(ks[sel]), np.ascontiguousarray(ctx.elem_shininess[e]),
             float(lights.offset), *lights.light_args, int(lights.samples),
-            np.ascontiguousarray(modes))
+            np.ascontiguousarray(modes), SHADOW_PROBES)
 
     if ctx.elem_unshadowed is None:
         return run(ctx.grid, slice(None))

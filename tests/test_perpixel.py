@@ -174,38 +174,74 @@ def test_sample_ids_are_global_pixel_sample_ids():
                             for s in range(4)]
 
 
-def test_a_light_every_corner_sees_casts_no_shadow_ray_and_keeps_the_bits_where_none_is_blocked():
-    # Hits on a floor under a 2 × 2 emitter with a thin blade in between. Taken as visible
-    # (LIGHT_VISIBLE), a hit gets Lambert's exact unoccluded term: the bits of tracing its rays
-    # wherever none is blocked, and more than the traced value in the blade's shadow (no ray
-    # was cast, so the blade is not seen): the mode is what decides.
-    from daskrad.kernels.direct import LIGHT_TRACE, LIGHT_VISIBLE
+def _blade_hits(n=400, blocker=None):
+    """``run(mode, probe=False)``: :func:`direct_at_hits` at ``n`` random hits on a floor
+    (y = 0) under a 2 × 2 emitter (y = 2, facing down) with a thin blade (|x| < 0.02) at
+    y = 1 between, every hit given ``mode`` for the light; ``blocker``: more triangles in the
+    grid. Returns ``(run, points)``."""
     from daskrad.kernels.grid import build_grid
     from daskrad.kernels.shade import direct_at_hits
 
     light = np.array([[-1.0, 2, -1], [1, 2, -1], [1, 2, 1], [-1, 2, 1]])      # faces down
     blade = np.array([[[-0.02, 1, -3], [0.02, 1, -3], [0.02, 1, 3]],
                       [[-0.02, 1, -3], [0.02, 1, 3], [-0.02, 1, 3]]])
-    grid = build_grid(np.concatenate([blade, light[[[0, 1, 2], [0, 2, 3]]]]))
+    tris = [blade, light[[[0, 1, 2], [0, 2, 3]]]] + ([blocker] if blocker is not None else [])
+    grid = build_grid(np.concatenate(tris))
     rng = np.random.default_rng(5)
-    n = 400
     p = np.column_stack([rng.uniform(-1.5, 1.5, n), np.zeros(n), rng.uniform(-1.5, 1.5, n)])
     up = np.tile([0.0, 1.0, 0.0], (n, 1))
     lights = (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)),
               light[None].copy(), np.array([4], np.int64), np.array([[0.0, -1.0, 0.0]]),
               np.array([[1.0, 2.0, 3.0]]), np.array([4.0]))
 
-    def run(mode):
+    def run(mode, probe=False):
         return direct_at_hits(grid, p, up, up, np.arange(n, dtype=np.int64),
                               np.zeros((n, 3)), np.zeros(n), 1e-7, *lights, 4,
-                              np.full((n, 1), mode, np.int8))[0]
+                              np.full((n, 1), mode, np.int8), probe)[0]
 
+    return run, p
+
+
+def test_a_light_every_corner_sees_casts_no_shadow_ray_and_keeps_the_bits_where_none_is_blocked():
+    # Hits on a floor under a 2 × 2 emitter with a thin blade in between. Taken as visible
+    # (LIGHT_VISIBLE), a hit gets Lambert's exact unoccluded term: the bits of tracing its rays
+    # wherever none is blocked, and more than the traced value in the blade's shadow (no ray
+    # was cast, so the blade is not seen): the mode is what decides.
+    from daskrad.kernels.direct import LIGHT_TRACE, LIGHT_VISIBLE
+
+    run, p = _blade_hits()
     traced, taken = run(LIGHT_TRACE), run(LIGHT_VISIBLE)
     F = np.array([lambert_polygon_at(q) for q in p])
     np.testing.assert_allclose(taken[:, 0], math.pi * F, rtol=1e-12)   # unoccluded, exact
     blocked = traced[:, 0] < taken[:, 0]
     assert blocked.any() and (~blocked).any()
     assert np.array_equal(traced[~blocked], taken[~blocked])
+
+
+def test_shadow_probes_keep_the_traced_bits_unless_the_corner_strata_agree():
+    # Probing (the per-pixel pass) traces the light's four corner strata of 4 × 4 first. A ray
+    # from a floor point x_p to a light point x_q crosses the blade when |x_p + x_q| < 0.04.
+    # Where a corner stratum's ray is blocked and another's is not, the rest is traced with
+    # the bits of no probing; where all four pass, the light is taken as free and a blade's
+    # shadow on the strata between them is missed (the documented cost); where nothing is
+    # blocked both are the unoccluded term.
+    from daskrad.kernels.direct import LIGHT_TRACE, LIGHT_VISIBLE
+
+    run, p = _blade_hits()
+    traced, probed, free = run(LIGHT_TRACE), run(LIGHT_TRACE, True), run(LIGHT_VISIBLE)
+    same = (probed == traced).all(axis=1)
+    missed = ~same
+    assert np.array_equal(probed[missed], free[missed])       # a miss: the light taken free
+    shadowed = traced[:, 0] < free[:, 0]
+    assert missed.any() and shadowed[missed].all()      # missed: only the blade's shadow
+    assert (same & shadowed).any()         # disagreeing corners: traced, shadow and all
+    # wholly hidden (a wide plate under the light): the corners agree and the answer is 0,
+    # as traced
+    plate = np.array([[[-3.0, 1.5, -3], [3, 1.5, -3], [3, 1.5, 3]],
+                      [[-3.0, 1.5, -3], [3, 1.5, 3], [-3, 1.5, 3]]])
+    run, _ = _blade_hits(blocker=plate)
+    hidden, probed = run(LIGHT_TRACE), run(LIGHT_TRACE, True)
+    assert not hidden.any() and np.array_equal(hidden, probed)
 
 
 def lambert_polygon_at(q):

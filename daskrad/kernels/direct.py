@@ -78,10 +78,71 @@ def _sample_polygon(corners, count, u, v):
     return out
 
 
+#: Strata per side from which the per-pixel pass probes an area light (``probe``): with fewer
+#: the four corner strata are most of the samples.
+PROBE_SIDE = 3
+
+
+@jit
+def _stratum_point(corners, count, seed, m, ss, samples, k):
+    """The jittered point of stratum ``k`` (of ``samples²``) of area light ``m``."""
+    inv_s = 1.0 / samples
+    u = ((k % samples) + hash01(seed, 2 * (m * ss + k))) * inv_s
+    v = ((k // samples) + hash01(seed, 2 * (m * ss + k) + 1)) * inv_s
+    return _sample_polygon(corners, count, u, v)
+
+
+@jit
+def _kernel(p, n, en, q):
+    """``cos θ cos θ' / r⁴`` (the weight of a sample ``q`` of a light with normal ``en`` seen
+    from ``p`` with normal ``n``; ``1/r²`` more than the point-to-point kernel, for the
+    normalised visible fraction), 0 when either side faces away."""
+    rx = q[0] - p[0]
+    ry = q[1] - p[1]
+    rz = q[2] - p[2]
+    r2 = rx * rx + ry * ry + rz * rz
+    if r2 == 0.0:
+        return 0.0
+    cos_p = n[0] * rx + n[1] * ry + n[2] * rz
+    cos_q = -(en[0] * rx + en[1] * ry + en[2] * rz)
+    if cos_p <= 0.0 or cos_q <= 0.0:
+        return 0.0
+    return cos_p * cos_q / (r2 * r2)
+
+
+@jit
+def _unblocked(grid, fan, o, q, off, d):
+    """Whether the shadow ray from ``o`` to ``q`` is free (``d``: scratch for its direction);
+    hits within ``off`` of either end do not count."""
+    d[0] = q[0] - o[0]
+    d[1] = q[1] - o[1]
+    d[2] = q[2] - o[2]
+    dl = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    return not (dl > 2.0 * off and any_hit_fan(grid, fan, o, d, off / dl, 1.0 - off / dl))
+
+
+@jit
+def _corner_stratum(c, samples):
+    """Stratum of corner ``c`` (0–3) of the ``samples × samples`` grid."""
+    i = 0 if c % 2 == 0 else samples - 1
+    j = 0 if c < 2 else samples - 1
+    return j * samples + i
+
+
+@jit
+def _which_corner(k, samples):
+    """Which corner stratum (0–3) stratum ``k`` is, or −1."""
+    i = k % samples
+    j = k // samples
+    if (i != 0 and i != samples - 1) or (j != 0 and j != samples - 1):
+        return -1
+    return (0 if i == 0 else 1) + (0 if j == 0 else 2)
+
+
 @jit
 def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
                    em_corners, em_count, em_normal, em_radiance, em_area, samples,
-                   view, ks, ns, modes, out_h, out_spec, out_class):
+                   view, ks, ns, modes, out_h, out_spec, out_class, probe=False):
     """Direct irradiance at one point, added to ``out_h (3,)``.
 
     Parameters
@@ -125,6 +186,14 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
         Receives each area light's class at the point: ``LIGHT_VISIBLE`` when ``F > 0`` and
         no shadow ray was blocked, ``LIGHT_HIDDEN`` when ``F > 0`` and every ray was,
         ``LIGHT_TRACE`` otherwise.
+    probe : bool
+        With ``samples >= PROBE_SIDE``, trace a light's four corner strata first; when all four
+        face both ways and agree (all free, or all blocked), the other strata are taken as
+        they are, untraced (``samples² − 4`` rays spared). A disagreement traces
+        the rest as without probing (the corners' own rays are reused), so the answer then
+        has the same bits; an agreement is wrong only where a shadow or a gap falls wholly
+        between the corner strata. The per-pixel pass probes (:data:`daskrad.render.
+        SHADOW_PROBES`); the vertex pass does not (a vertex's classes must be exact).
     """
     spec = ks[0] > 0.0 or ks[1] > 0.0 or ks[2] > 0.0
     norm_spec = (ns + 2.0) / (2.0 * np.pi)
@@ -183,7 +252,9 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
         return
     p = pa
     ss = samples * samples
-    inv_s = 1.0 / samples
+    # probing (the per-pixel pass): the light's four corner strata are traced first
+    probing = probe and samples >= PROBE_SIDE
+    seen = np.full(4, -1, np.int8)      # each corner stratum: -1 not traced, 0 blocked, 1 free
     for m in range(em_corners.shape[0]):
         out_class[m] = LIGHT_TRACE
         if modes[m] == LIGHT_HIDDEN:
@@ -201,35 +272,48 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
         F = lambert_polygon(p[0], p[1], p[2], n[0], n[1], n[2], em_corners[m], cnt)
         if F <= 0.0:
             continue
+        # agree: -1 trace every stratum; 0 / 1: the four corner strata all face both ways and
+        # were all blocked / all free, so the others are taken as they, untraced
+        agree = -1
+        if trace and probing:
+            free = 0
+            blocked = 0
+            for c in range(4):
+                k = _corner_stratum(c, samples)
+                q = _stratum_point(em_corners[m], cnt, seed, m, ss, samples, k)
+                seen[c] = -1
+                if _kernel(p, n, en, q) > 0.0:
+                    seen[c] = 1 if _unblocked(grid, fan, o, q, off, d) else 0
+                    free += seen[c]
+                    blocked += 1 - seen[c]
+            if free == 4:
+                agree = 1
+            elif blocked == 4:
+                agree = 0
         wsum = 0.0
         wvis = 0.0
         for k in range(ss):
-            u = ((k % samples) + hash01(seed, 2 * (m * ss + k))) * inv_s
-            v = ((k // samples) + hash01(seed, 2 * (m * ss + k) + 1)) * inv_s
-            q = _sample_polygon(em_corners[m], cnt, u, v)
-            rx = q[0] - p[0]
-            ry = q[1] - p[1]
-            rz = q[2] - p[2]
-            r2 = rx * rx + ry * ry + rz * rz
-            if r2 == 0.0:
+            q = _stratum_point(em_corners[m], cnt, seed, m, ss, samples, k)
+            w = _kernel(p, n, en, q)
+            if w <= 0.0:
                 continue
-            cos_p = n[0] * rx + n[1] * ry + n[2] * rz
-            cos_q = -(en[0] * rx + en[1] * ry + en[2] * rz)
-            if cos_p <= 0.0 or cos_q <= 0.0:
-                continue
-            w = cos_p * cos_q / (r2 * r2)
             wsum += w
-            d[0] = q[0] - ox
-            d[1] = q[1] - oy
-            d[2] = q[2] - oz
-            dl = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-            if trace and dl > 2.0 * off and any_hit_fan(grid, fan, o, d, off / dl,
-                                                         1.0 - off / dl):
-                continue
+            if trace:
+                if agree >= 0:
+                    visible = agree == 1
+                else:
+                    c = _which_corner(k, samples) if probing else -1
+                    visible = (seen[c] == 1 if c >= 0
+                               else _unblocked(grid, fan, o, q, off, d))
+                if not visible:
+                    continue
             wvis += w
             if spec:
                 # the sample stands for area/ss of the light: dH = Le cos cos' dA / r²
-                r = np.sqrt(r2)
+                rx = q[0] - p[0]
+                ry = q[1] - p[1]
+                rz = q[2] - p[2]
+                r = np.sqrt(rx * rx + ry * ry + rz * rz)
                 g = w * em_area[m] / ss
                 _phong(n, rx / r, ry / r, rz / r, view, ks, ns, norm_spec, g, em_radiance[m],
                        out_spec)

@@ -8,7 +8,8 @@ materials with a specular part (a Phong lobe from every light). Both go through
 :func:`daskrad.kernels.direct.irradiance_one`, so a pixel and a vertex at the same place get the
 same direct light, with the same robust shadow-ray offset; only an area light every corner of
 the hit's element sees whole is taken as visible without its shadow rays (``modes``,
-:func:`daskrad.render.light_modes`).
+:func:`daskrad.render.light_modes`), and with ``probe`` a traced light whose four corner
+strata agree is taken as they are (:func:`daskrad.kernels.direct.irradiance_one`).
 
 Area-light shadow rays are stratified and jittered by a hash of the hit's ``seed`` (its pixel
 sample id, see :func:`daskrad.render.sample_ids`): a pixel's value depends on the pixel, never
@@ -27,7 +28,7 @@ from daskrad.kernels.grid import new_fan
 @jit
 def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_int, dl_dir,
                    dl_irr, em_corners, em_count, em_normal, em_radiance, em_area, samples,
-                   modes):
+                   modes, probe=False):
     """Direct irradiance and Phong radiance at ray hits.
 
     Parameters
@@ -48,6 +49,9 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
         Per hit and area light, trace its shadow rays, take it as wholly visible or skip it
         as proved hidden (:data:`daskrad.kernels.direct.LIGHT_TRACE`, ``LIGHT_VISIBLE``,
         ``LIGHT_HIDDEN``).
+    probe : bool
+        Probe each traced area light from its corner strata first (``irradiance_one``'s
+        ``probe``; the renderer passes :data:`daskrad.render.SHADOW_PROBES`).
 
     Returns ``H (n, 3)``, the irradiance (W per unit area), and ``S (n, 3)``, the Phong
     radiance ``Σ_lights Ks (Ns+2)/(2π) max(0, r·v)^Ns dH``.
@@ -60,5 +64,5 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
     for i in range(n):
         irradiance_one(grid, fan, points[i], points[i], normals[i], off, seeds[i], pl_pos, pl_int,
                        dl_dir, dl_irr, em_corners, em_count, em_normal, em_radiance, em_area,
-                       samples, views[i], ks[i], ns[i], modes[i], H[i], S[i], classes)
+                       samples, views[i], ks[i], ns[i], modes[i], H[i], S[i], classes, probe)
     return H, S
