@@ -25,6 +25,13 @@ s`` (``s ≤ ρ_max`` the share its receivers reflect) leaves ``(w − 1) |ΔB_i
 at most ``w s |ΔB_i| A_i``: the power cannot grow while ``ρ_max (1 + (ω − 1)(1 + ρ_max)) ≤ 1``
 (:func:`unshot_contracts`; ρ_max up to 0.66 at ω = 1.3), and is not bounded batch by batch
 beyond.
+
+``B ≥ 0`` and ``B ≤ max(E)/(1 − ρ_max)`` are proved for plain shots only: every plain shot adds
+a non-negative ``ρ_j ΔB_i F_ij A_i/A_j`` and the total stays below the Neumann series' bound.
+Overshot, a later shot of a patch takes its excess back (a negative ``ΔB_i``, through rows of
+other samples when the patch crossed the sample gate between shots), so a receiver may in
+principle dip below what it had: :func:`safety` checks both at every ω as observed facts of
+its scenes, not as consequences of the arithmetic.
 """
 
 from __future__ import annotations
