@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from daskrad import render
 from daskrad.formfactor import analytic_rows
@@ -174,11 +175,11 @@ def test_sample_ids_are_global_pixel_sample_ids():
                             for s in range(4)]
 
 
-def _blade_hits(n=400, blocker=None):
+def _blade_hits(n=400, blocker=None, samples=4):
     """``run(mode, probe=False)``: :func:`direct_at_hits` at ``n`` random hits on a floor
     (y = 0) under a 2 × 2 emitter (y = 2, facing down) with a thin blade (|x| < 0.02) at
-    y = 1 between, every hit given ``mode`` for the light; ``blocker``: more triangles in the
-    grid. Returns ``(run, points)``."""
+    y = 1 between, every hit given ``mode`` for the light and ``samples²`` shadow rays;
+    ``blocker``: more triangles in the grid. Returns ``(run, points)``."""
     from daskrad.kernels.grid import build_grid
     from daskrad.kernels.shade import direct_at_hits
 
@@ -196,7 +197,7 @@ def _blade_hits(n=400, blocker=None):
 
     def run(mode, probe=False):
         return direct_at_hits(grid, p, up, up, np.arange(n, dtype=np.int64),
-                              np.zeros((n, 3)), np.zeros(n), 1e-7, *lights, 4,
+                              np.zeros((n, 3)), np.zeros(n), 1e-7, *lights, samples,
                               np.full((n, 1), mode, np.int8), probe)[0]
 
     return run, p
@@ -218,8 +219,9 @@ def test_a_light_every_corner_sees_casts_no_shadow_ray_and_keeps_the_bits_where_
     assert np.array_equal(traced[~blocked], taken[~blocked])
 
 
-def test_shadow_probes_keep_the_traced_bits_unless_the_corner_strata_agree():
-    # Probing (the per-pixel pass) traces the light's four corner strata of 4 × 4 first. A ray
+@pytest.mark.parametrize("samples", [3, 4, 5])
+def test_shadow_probes_keep_the_traced_bits_unless_the_corner_strata_agree(samples):
+    # Probing (the per-pixel pass) traces the light's four corner strata of s × s first. A ray
     # from a floor point x_p to a light point x_q crosses the blade when |x_p + x_q| < 0.04.
     # Where a corner stratum's ray is blocked and another's is not, the rest is traced with
     # the bits of no probing; where all four pass, the light is taken as free and a blade's
@@ -227,7 +229,7 @@ def test_shadow_probes_keep_the_traced_bits_unless_the_corner_strata_agree():
     # blocked both are the unoccluded term.
     from daskrad.kernels.direct import LIGHT_TRACE, LIGHT_VISIBLE
 
-    run, p = _blade_hits()
+    run, p = _blade_hits(samples=samples)
     traced, probed, free = run(LIGHT_TRACE), run(LIGHT_TRACE, True), run(LIGHT_VISIBLE)
     same = (probed == traced).all(axis=1)
     missed = ~same
@@ -239,9 +241,10 @@ def test_shadow_probes_keep_the_traced_bits_unless_the_corner_strata_agree():
     # as traced
     plate = np.array([[[-3.0, 1.5, -3], [3, 1.5, -3], [3, 1.5, 3]],
                       [[-3.0, 1.5, -3], [3, 1.5, 3], [-3, 1.5, 3]]])
-    run, _ = _blade_hits(blocker=plate)
+    run, _ = _blade_hits(blocker=plate, samples=samples)
     hidden, probed = run(LIGHT_TRACE), run(LIGHT_TRACE, True)
     assert not hidden.any() and np.array_equal(hidden, probed)
+
 
 
 def lambert_polygon_at(q):

@@ -192,7 +192,9 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
         they are, untraced (``samples² − 4`` rays spared). A disagreement traces
         the rest as without probing (the corners' own rays are reused), so the answer then
         has the same bits; an agreement is wrong only where a shadow or a gap falls wholly
-        between the corner strata. The per-pixel pass probes (:data:`daskrad.render.
+        between the corner strata, and ``out_class`` then reports the class assumed. On a
+        triangle light the square-root warp puts two corner strata beside its first vertex,
+        so three of its corners are probed. The per-pixel pass probes (:data:`daskrad.render.
         SHADOW_PROBES`); the vertex pass does not (a vertex's classes must be exact).
     """
     spec = ks[0] > 0.0 or ks[1] > 0.0 or ks[2] > 0.0
@@ -254,7 +256,7 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
     ss = samples * samples
     # probing (the per-pixel pass): the light's four corner strata are traced first
     probing = probe and samples >= PROBE_SIDE
-    seen = np.full(4, -1, np.int8)      # each corner stratum: -1 not traced, 0 blocked, 1 free
+    seen = np.full(4 if probing else 0, -1, np.int8)   # per corner: -1 untraced, 0 blocked, 1 free
     for m in range(em_corners.shape[0]):
         out_class[m] = LIGHT_TRACE
         if modes[m] == LIGHT_HIDDEN:

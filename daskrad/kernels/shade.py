@@ -3,7 +3,7 @@
 
 The renderer interpolates vertex radiance everywhere, then calls :func:`direct_at_hits` on the
 few hits that need more: hits on elements whose vertex colours spread more than ``Rdiff``
-(paper eq. 9: their direct light is recomputed at the hit, exactly as at a vertex) and hits on
+(paper eq. 9: their direct light is recomputed at the hit as at a vertex) and hits on
 materials with a specular part (a Phong lobe from every light). Both go through
 :func:`daskrad.kernels.direct.irradiance_one`, so a pixel and a vertex at the same place get the
 same direct light, with the same robust shadow-ray offset; only an area light every corner of
