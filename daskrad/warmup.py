@@ -210,7 +210,8 @@ def drop_cache(directory: Path | None = None) -> int:
 def compile_all() -> None:
     """Run every kernel once with the argument types of a real run: the pipeline on the tiny
     scene (two-pass, per-pixel pass, Phong, mirror, point and directional light), then each
-    form-factor method and each area-light method on its mesh."""
+    form-factor method and each area-light method on its mesh, the coplanar-overlap test and
+    the hidden-light proof of the per-pixel pass."""
     from daskrad import direct, formfactor
     from daskrad.formfactor import shooting
     from daskrad.preprocess import preprocess
@@ -232,7 +233,7 @@ def compile_all() -> None:
             progress=False)
         scene = load_scene(d / "warm.obj")
         mesh = preprocess(scene, settings)
-        direct.light(scene, mesh, settings.replace(area_method="rays"))
+        light = direct.light(scene, mesh, settings.replace(area_method="rays"))
         h = mesh.hierarchy
         for method in formfactor.METHODS:
             ctx = shooting.make_context(h, method, 16 if method != "hemicube" else 8,
@@ -245,6 +246,17 @@ def compile_all() -> None:
         sq = np.array([[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0], [1, 1, 0], [3, 1, 0],
                        [3, 3, 0], [1, 3, 0]], float)
         coplanar_overlaps(sq, np.array([[0, 1, 2, 3], [4, 5, 6, 7]]), 4.25)
+        # the proof that one face hides a light from a per-pixel element runs only for a light
+        # hidden from every corner of one (the Cornell box's blocks): every pair asked here
+        from daskrad import render
+
+        lights = direct.lights_of(light.context)
+        ctx = render.RenderContext(grid=light.mesh.grid, tri_verts=light.mesh.tri_verts,
+                                   tri_element=light.mesh.tri_element,
+                                   elem_normal=light.mesh.hierarchy.elem_normal,
+                                   vertex_radiance=None, camera=None, spp=1, lights=lights)
+        render.hidden_lights(ctx, light.mesh.hierarchy, np.ones(
+            (light.mesh.hierarchy.n_elements, len(lights.emitter_corners)), bool))
 
 
 def warmup(verbose: bool = True) -> float:
