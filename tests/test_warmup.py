@@ -95,3 +95,28 @@ def test_warmup_leaves_nothing_to_compile_for_a_default_run(tmp_path):
     assert "compiling" not in run.stderr
     after = {p: p.stat().st_mtime_ns for p in (tmp_path / "numba").rglob("*.nb*")}
     assert after == before
+
+
+_MISSES = """
+import gc, sys
+from numba.core.registry import CPUDispatcher
+from daskrad.run import run
+from daskrad.settings import Settings
+run(sys.argv[1], sys.argv[2], Settings(workers=0, width=64, height=64), progress=False)
+print(sorted(d.py_func.__qualname__ for d in gc.get_objects()
+             if isinstance(d, CPUDispatcher) and d.py_func.__module__.startswith("daskrad")
+             and sum(d.stats.cache_misses.values())))
+"""
+
+
+@pytest.mark.skipif(not warmup.is_warm(), reason="the kernel cache is not warm (make install "
+                    "warms it)")
+def test_a_run_on_the_warm_cache_compiles_no_kernel(tmp_path):
+    # the fast twin of the slow test above, on the cache `make install` warmed: a default run
+    # of the Cornell box (its blocks hide the light from per-pixel elements: the hidden-light
+    # proof runs) misses numba's cache for no kernel. The kernels of that proof were once left
+    # out of the warmup and compiled silently in the first run
+    done = subprocess.run([sys.executable, "-c", _MISSES, str(CORNELL), str(tmp_path / "c.exr")],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().splitlines()[-1] == "[]"
