@@ -251,12 +251,13 @@ def compile_all() -> None:
         from daskrad import render
 
         lights = direct.lights_of(light.context)
-        ctx = render.RenderContext(grid=light.mesh.grid, tri_verts=light.mesh.tri_verts,
-                                   tri_element=light.mesh.tri_element,
-                                   elem_normal=light.mesh.hierarchy.elem_normal,
-                                   vertex_radiance=None, camera=None, spp=1, lights=lights)
-        render.hidden_lights(ctx, light.mesh.hierarchy, np.ones(
-            (light.mesh.hierarchy.n_elements, len(lights.emitter_corners)), bool))
+        lit = light.mesh            # refined by the direct pass: not `mesh` any more
+        view = render.RenderContext(grid=lit.grid, tri_verts=lit.tri_verts,
+                                    tri_element=lit.tri_element,
+                                    elem_normal=lit.hierarchy.elem_normal,
+                                    vertex_radiance=None, camera=None, spp=1, lights=lights)
+        render.hidden_lights(view, lit.hierarchy, np.ones(
+            (lit.hierarchy.n_elements, len(lights.emitter_corners)), bool))
 
 
 def warmup(verbose: bool = True) -> float:
