@@ -31,7 +31,8 @@ occluders that last hid a light searched first, ``HINT``), against the exhaustiv
 (``slabs = 0``: every pyramid searched whole, every candidate drawn), alternated in one
 process, with the vertex-light pairs by kind. The window's modes must give the same bits; the
 face test's vertices that moved (where it proved ``V = 0`` and the raster let a pixel or two
-through) are counted, with their largest change.
+through) are counted, with their largest change; and the face test and window again with every
+row of each pyramid's box walked (``prune=False``: the same bits, it must be slower).
 Results go to ``results/arealight_scenes.json``.
 """
 
@@ -193,22 +194,26 @@ def _scene(path: str, vertices: int) -> dict:
             ctx.emitter_corners, ctx.emitter_count, ctx.emitter_normal, ctx.emitter_radiance,
             direct.AREA_RESOLUTION, np.radians(tolerances.EDGE_ANGLE_DEG))
     window = no_faces(len(ctx.grid.triangles))
-    modes = {"faces": (ctx.faces, SLABS, HINT), "hint": (window, SLABS, HINT),
-             "early stop": (window, SLABS, 0), "exhaustive": (window, 0, 0)}
-    for faces, slabs, hint in modes.values():  # compile (or load) before timing
-        area_irradiance_stats(ctx.grid, faces, P[:4], N[:4], *args, slabs, hint)
+    modes = {"faces": (ctx.faces, SLABS, HINT, True),
+             "every row": (ctx.faces, SLABS, HINT, False),
+             "hint": (window, SLABS, HINT, True), "early stop": (window, SLABS, 0, True),
+             "exhaustive": (window, 0, 0, False)}
+    for faces, slabs, hint, prune in modes.values():  # compile (or load) before timing
+        area_irradiance_stats(ctx.grid, faces, P[:4], N[:4], *args, slabs, hint, prune)
     best = dict.fromkeys(modes, np.inf)
     out = {}
     for _ in range(2):
-        for name, (faces, slabs, hint) in modes.items():
+        for name, (faces, slabs, hint, prune) in modes.items():
             t = time.process_time()
-            out[name] = area_irradiance_stats(ctx.grid, faces, P, N, *args, slabs, hint)
+            out[name] = area_irradiance_stats(ctx.grid, faces, P, N, *args, slabs, hint,
+                                              prune)
             best[name] = min(best[name], time.process_time() - t)
     moved = np.abs(out["faces"][0] - out["exhaustive"][0]).sum(axis=1)
     total = out["exhaustive"][0].sum(axis=1)
     return {"scene": Path(path).name, "vertices": len(P), "of_vertices": V,
             "emitter_patches": int(len(ctx.emitter_corners)), **_pairs(ctx, P, N),
             "cpu_seconds_faces": best["faces"],
+            "cpu_seconds_every_row": best["every row"],
             "cpu_seconds_hint": best["hint"],
             "cpu_seconds_early_stop": best["early stop"],
             "cpu_seconds_exhaustive": best["exhaustive"],
@@ -220,7 +225,9 @@ def _scene(path: str, vertices: int) -> dict:
             "faces_moved_relative": float(moved.sum() / total.sum()),
             "faces_moved_max": float(moved.max() / total.max()),
             "same_bits": bool(np.array_equal(out["hint"][0], out["exhaustive"][0])
-                              and np.array_equal(out["early stop"][0], out["exhaustive"][0]))}
+                              and np.array_equal(out["early stop"][0], out["exhaustive"][0])
+                              and all(np.array_equal(a, b) for a, b in
+                                      zip(out["faces"], out["every row"], strict=True)))}
 
 
 #: Runs of consecutive vertices :func:`_scene` takes, evenly spread over the scene.
@@ -237,7 +244,9 @@ def scenes(paths: list[str], vertices: int) -> list[dict]:
               f"({r['candidates_faces']}; x{r['cpu_seconds_hint'] / r['cpu_seconds_faces']:.2f}"
               f" over the window alone; {r['faces_moved_vertices']} vertices moved, by "
               f"{r['faces_moved_relative']:.1e} of the total, at most "
-              f"{r['faces_moved_max']:.1e} of the largest), "
+              f"{r['faces_moved_max']:.1e} of the largest; every row of the pyramid's "
+              f"box walked {r['cpu_seconds_every_row']:.2f}, "
+              f"x{r['cpu_seconds_every_row'] / r['cpu_seconds_faces']:.2f}), "
               f"hint {r['cpu_seconds_hint']:.2f} "
               f"({r['candidates_hint']}), early stop {r['cpu_seconds_early_stop']:.2f} "
               f"({r['candidates_early_stop']}), exhaustive "

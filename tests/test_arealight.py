@@ -432,6 +432,39 @@ def test_early_stop_gives_the_same_bits_as_drawing_every_occluder():
     assert np.array_equal(H_f, H)
 
 
+def test_walking_only_the_rows_the_pyramid_reaches_finds_the_same_candidates():
+    # A dust of 20,000 tiny triangles in a unit cube (each in one cell of the grid, so a
+    # candidate is found through one row only), 24 lights facing every way and 150 points:
+    # each pyramid searched whole (slabs = 0, every candidate counted in ``work``) with the
+    # rows of its box pruned and without. A row the pruning dropped wrongly would lose the
+    # candidates of its cells, so the counts per point, and the irradiance, must be equal;
+    # and the scene must hold candidates at all.
+    rng = np.random.default_rng(5)
+    centres = rng.uniform(0.0, 1.0, size=(20000, 1, 3))
+    tris = np.ascontiguousarray(centres + rng.uniform(-1e-4, 1e-4, size=(20000, 3, 3)))
+    grid = build_grid(tris)
+    n_lights = 24
+    normals = rng.normal(size=(n_lights, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    corners = np.empty((n_lights, 4, 3))
+    for m in range(n_lights):
+        t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(*normals[m])
+        t1, t2 = np.array([t1x, t1y, t1z]), np.array([t2x, t2y, t2z])
+        corners[m] = rng.uniform(0.1, 0.9, 3) + 0.05 * np.array(
+            [-t1 - t2, t1 - t2, t1 + t2, -t1 + t2])
+    lights = (corners, np.full(n_lights, 4, np.int64), normals, np.tile(LE, (n_lights, 1)))
+    pts = rng.uniform(0.0, 1.0, size=(150, 3))
+    nrm = rng.normal(size=pts.shape)
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    none = no_faces(len(tris))
+    out = {prune: area_irradiance_stats(grid, none, pts, nrm, OFF, HZ, *lights, 8, EDGE, 0, 0,
+                                        prune)
+           for prune in (True, False)}
+    assert out[False][1].sum() > 10 * len(pts)
+    for a, b in zip(out[True], out[False], strict=True):
+        assert np.array_equal(a, b)
+
+
 @pytest.mark.parametrize("method", ["hemisphere", "rays"])
 def test_vertex_classes_say_exactly_which_lights_are_wholly_visible_or_hidden(method):
     # The fully-hidden scene (a blocker between the floor and a 4-patch emitter): per vertex
