@@ -432,13 +432,13 @@ def test_early_stop_gives_the_same_bits_as_drawing_every_occluder():
     assert np.array_equal(H_f, H)
 
 
-def test_walking_only_the_rows_the_pyramid_reaches_finds_the_same_candidates():
+def test_walking_only_the_rows_and_cells_the_pyramid_reaches_finds_the_same_candidates():
     # A dust of 20,000 tiny triangles in a unit cube (each in one cell of the grid, so a
     # candidate is found through one row only), 24 lights facing every way and 150 points:
     # each pyramid searched whole (slabs = 0, every candidate counted in ``work``) with the
-    # rows of its box pruned and without. A row the pruning dropped wrongly would lose the
-    # candidates of its cells, so the counts per point, and the irradiance, must be equal;
-    # and the scene must hold candidates at all.
+    # rows and empty cells of its box pruned and without. A row or a cell the pruning dropped
+    # wrongly would lose its candidates, so the counts per point, and the irradiance, must be
+    # equal; and the scene must hold candidates at all.
     rng = np.random.default_rng(5)
     centres = rng.uniform(0.0, 1.0, size=(20000, 1, 3))
     tris = np.ascontiguousarray(centres + rng.uniform(-1e-4, 1e-4, size=(20000, 3, 3)))

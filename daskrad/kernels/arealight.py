@@ -311,10 +311,12 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid
     triangle, whatever parts the box is walked in; ``stamp (T,)`` (``== sid`` once seen for
     this light and point) drops repeats, within a part and across parts.
 
-    ``prune``: walk only the rows of a layer that some cell of can pass every plane (the
-    same cells, hence the same candidates; ``False``, every row of the box, is the reference
-    the tests hold it to). A pyramid fills a thin slanted part of its box: at RenderPark's
-    office (graz) a vertex-light pair's box has ~4 times the rows that hold a cell of it.
+    ``prune``: walk only the rows of a layer that some cell of can pass every plane, and test
+    only the cells that hold a triangle (the same cells, hence the same candidates; ``False``,
+    every cell of the box tested, is the reference the tests hold it to). A pyramid fills a
+    thin slanted part of its box, and most of it is air: at RenderPark's office (graz) a
+    vertex-light pair's box has ~4 times the rows that hold a cell of it, and ~88 % of the
+    cells it reaches are empty.
     """
     npl = count + 1
     origin, cell, dims = grid.origin, grid.cell, grid.dims
@@ -373,6 +375,11 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid
                 else:
                     ib = min(ib, int(np.ceil(bound)) + 1)
             for i in range(ia, ib + 1):
+                c = (k * dims[1] + j) * dims[0] + i
+                # most cells are empty (graz: 82 % of the grid, ~88 % of those a pyramid
+                # reaches): two loads instead of the plane tests
+                if prune and grid.cell_start[c] == grid.cell_start[c + 1]:
+                    continue
                 cx = origin[0] + (i + 0.5) * cell[0]
                 out = False
                 for a in range(npl):
@@ -386,7 +393,6 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid
                         break
                 if out:
                     continue
-                c = (k * dims[1] + j) * dims[0] + i
                 for q in range(grid.cell_start[c], grid.cell_start[c + 1]):
                     t = grid.cell_items[q]
                     if stamp[t] == sid:
@@ -801,8 +807,9 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
         :data:`HINT` occluders remembered per light and searched first; 0: none (the same
         bits, slower where housings hide luminaires).
     prune : bool
-        Walk only the rows of the pyramid's box that hold a cell of it (:func:`_candidates`);
-        ``False``: every row (the same bits, slower).
+        Walk only the rows of the pyramid's box that hold a cell of it, and test only its
+        cells that hold a triangle (:func:`_candidates`); ``False``: every cell (the same
+        bits, slower).
 
     Returns
     -------
