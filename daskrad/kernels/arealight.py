@@ -723,6 +723,18 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
         if q < 0:
             found = _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid,
                             cand, n_c, i0, i1, j0, j1, k0, k1, prune)
+            # the hinted occluders themselves drawn first: where they hide the light alone,
+            # the other candidates of their cells are not drawn (the order changes no pixel)
+            nh = hint.shape[0] - 1
+            w = n_c
+            for s in range(n_c, found):
+                t = cand[s]
+                for hh in range(min(hint[nh], nh)):
+                    if hint[hh] == t:
+                        cand[s] = cand[w]
+                        cand[w] = t
+                        w += 1
+                        break
         else:
             if step == 1:
                 s0 = lo + q * thick
