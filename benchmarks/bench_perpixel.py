@@ -23,6 +23,9 @@ caps the solve) at ``--size`` pixels, two comparisons, alternated ``--repeat`` t
   error and the pixels more than 5 % off; and the probed image against tracing every stratum
   (noise-free: the same rays but those spared): pixels changed, relative RMS of the change,
   the largest change relative to the pixel.
+- **Lambert after the rays** (:data:`daskrad.render.LAMBERT_AFTER_RAYS`): the same tiles (probes
+  and all) when an area light's ``F`` is computed only after one of its shadow rays came
+  through, against computing it first. Both give the same image (checked bit for bit).
 
 Seconds are wall time in this process, one thread. ``python -m benchmarks.bench_perpixel
 [--scene PATH --config TOML] [--size W H] [--shots N] [--repeat N]``; writes
@@ -159,6 +162,7 @@ def measure(path: Path, config: Path | None, size: tuple[int, int], shots: int,
         "change_relative_rms": float(np.sqrt(((a - b) ** 2).mean()) / math.sqrt((a**2).mean())),
         "change_largest_relative": float((diff / np.maximum(a.max(axis=2), 1e-300)).max()),
         **probes,
+        **_lambert(viewed, repeat),
     }
 
 
@@ -205,6 +209,33 @@ def _probes(ctx: render.RenderContext, repeat: int) -> dict:
             "probes_change_largest_relative": largest}
 
 
+def _lambert(ctx: render.RenderContext, repeat: int) -> dict:
+    """The tiles of ``ctx`` with Lambert's ``F`` after the shadow rays and before them,
+    alternated ``repeat`` times."""
+    def tiles(after):
+        keep = render.LAMBERT_AFTER_RAYS
+        render.LAMBERT_AFTER_RAYS = after
+        try:
+            t = time.perf_counter()
+            return render.render(ctx), time.perf_counter() - t
+        finally:
+            render.LAMBERT_AFTER_RAYS = keep
+
+    if ctx.lights is None:
+        return {}
+    seconds = {True: [], False: []}
+    images = {}
+    for k in range(repeat):
+        for after in ((False, True) if k % 2 == 0 else (True, False)):
+            images[after], t = tiles(after)
+            seconds[after].append(t)
+    return {"tiles_lambert_first_s": float(np.median(seconds[False])),
+            "tiles_lambert_after_s": float(np.median(seconds[True])),
+            "lambert_after_speedup": float(np.median(seconds[False])
+                                           / np.median(seconds[True])),
+            "lambert_after_same_bits": bool(np.array_equal(images[True], images[False]))}
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_perpixel")
     parser.add_argument("--scene", type=Path, action="append", default=[])
@@ -246,6 +277,12 @@ def main(argv: list[str] | None = None) -> dict:
                   f"{r['every_stratum_pixels_off_5pct']:>14,} / {r['probes_pixels_off_5pct']:<13,}"
                   f"{r['probes_pixels_changed']:>9,}{r['probes_change_relative_rms']:>9.1e}"
                   f"{r['probes_change_largest_relative']:>9.1e}")
+    print(f"\n{'Lambert after rays':<18}{'first':>8}{'after':>8}{'x':>6}  same bits")
+    for r in rows:
+        if "lambert_after_speedup" in r:
+            print(f"{r['scene']:<18}{r['tiles_lambert_first_s']:>8.2f}"
+                  f"{r['tiles_lambert_after_s']:>8.2f}{r['lambert_after_speedup']:>6.2f}  "
+                  f"{r['lambert_after_same_bits']}")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "perpixel.json").write_text(json.dumps(rows, indent=2) + "\n")
     return {"perpixel": rows}

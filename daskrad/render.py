@@ -570,6 +570,13 @@ def _radiance(ctx: RenderContext, o: np.ndarray, d: np.ndarray, seeds: np.ndarra
 #: 7.37e-4, 59 → 60 (37 changed, by 12 % at most).
 SHADOW_PROBES = True
 
+#: The per-pixel pass computes Lambert's ``F`` of an area light after its shadow rays, and only
+#: for a light one of them reaches (:func:`daskrad.kernels.direct.irradiance_one`'s
+#: ``lambert_first``): the same bits, as a light every ray finds blocked adds ``+0.0``. Most
+#: lights a hit of a furnished interior traces are hidden from it. ``False``: ``F`` first, as
+#: the vertex pass (``bench_perpixel`` compares the two).
+LAMBERT_AFTER_RAYS = True
+
 
 def _direct_at(ctx: RenderContext, lights: Lights, p: np.ndarray, elem: np.ndarray,
                views: np.ndarray, seeds: np.ndarray, ks: np.ndarray):
@@ -589,7 +596,7 @@ def _direct_at(ctx: RenderContext, lights: Lights, p: np.ndarray, elem: np.ndarr
             np.ascontiguousarray(views[sel]), np.ascontiguousarray(seeds[sel]),
             np.ascontiguousarray(ks[sel]), np.ascontiguousarray(ctx.elem_shininess[e]),
             float(lights.offset), *lights.light_args, int(lights.samples),
-            np.ascontiguousarray(modes), SHADOW_PROBES)
+            np.ascontiguousarray(modes), SHADOW_PROBES, not LAMBERT_AFTER_RAYS)
 
     if ctx.elem_unshadowed is None:
         return run(ctx.grid, slice(None))

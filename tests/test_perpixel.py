@@ -200,6 +200,7 @@ def _blade_hits(n=400, blocker=None, samples=4):
                               np.zeros((n, 3)), np.zeros(n), 1e-7, *lights, samples,
                               np.full((n, 1), mode, np.int8), probe)[0]
 
+    run.grid, run.lights = grid, lights
     return run, p
 
 
@@ -245,6 +246,33 @@ def test_shadow_probes_keep_the_traced_bits_unless_the_corner_strata_agree(sampl
     hidden, probed = run(LIGHT_TRACE), run(LIGHT_TRACE, True)
     assert not hidden.any() and np.array_equal(hidden, probed)
 
+
+
+@pytest.mark.parametrize("samples", [1, 2, 4])
+def test_the_per_pixel_pass_has_the_vertex_pass_bits_with_lambert_after_the_rays(samples):
+    # The per-pixel pass reads no class, so it computes Lambert's F of a light only after one
+    # of its rays came through (need_class=False); the vertex pass computes F first. At the
+    # same points, normals and seeds the irradiance must be the same bits: hits under the
+    # blade and a plate (every ray blocked), in the open, and facing every way (the light
+    # across the horizon, or wholly below it).
+    from daskrad.kernels.direct import LIGHT_TRACE, irradiance_points
+
+    plate = np.array([[[0.5, 1.5, -3], [3, 1.5, -3], [3, 1.5, 3]],
+                      [[0.5, 1.5, -3], [3, 1.5, 3], [0.5, 1.5, 3]]])
+    run, p = _blade_hits(n=600, blocker=plate, samples=samples)
+    rng = np.random.default_rng(9)
+    nrm = rng.normal(size=p.shape) + np.array([0.0, 1.5, 0.0])
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    grid, lights = run.grid, run.lights
+    seeds = np.arange(len(p), dtype=np.int64)
+    from daskrad.kernels.shade import direct_at_hits
+
+    pixel = direct_at_hits(grid, p, nrm, nrm, seeds, np.zeros((len(p), 3)), np.zeros(len(p)),
+                           1e-7, *lights, samples, np.full((len(p), 1), LIGHT_TRACE, np.int8))[0]
+    vertex = irradiance_points(grid, p, p, nrm, seeds, 1e-7, *lights, samples)[0]
+    assert np.array_equal(pixel, vertex)
+    lit = vertex[:, 0] > 0
+    assert lit.sum() > 100 and (~lit).sum() > 10
 
 
 def lambert_polygon_at(q):

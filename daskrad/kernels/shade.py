@@ -28,7 +28,7 @@ from daskrad.kernels.grid import new_fan
 @jit
 def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_int, dl_dir,
                    dl_irr, em_corners, em_count, em_normal, em_radiance, em_area, samples,
-                   modes, probe=False):
+                   modes, probe=False, lambert_first=False):
     """Direct irradiance and Phong radiance at ray hits.
 
     Parameters
@@ -52,6 +52,9 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
     probe : bool
         Probe each traced area light from its corner strata first (``irradiance_one``'s
         ``probe``; the renderer passes :data:`daskrad.render.SHADOW_PROBES`).
+    lambert_first : bool
+        Lambert's ``F`` of each area light before its rays (``irradiance_one``'s; ``False``,
+        after them and only for a light one of them reaches: the same bits, faster).
 
     Returns ``H (n, 3)``, the irradiance (W per unit area), and ``S (n, 3)``, the Phong
     radiance ``Σ_lights Ks (Ns+2)/(2π) max(0, r·v)^Ns dH``.
@@ -64,5 +67,6 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
     for i in range(n):
         irradiance_one(grid, fan, points[i], points[i], normals[i], off, seeds[i], pl_pos, pl_int,
                        dl_dir, dl_irr, em_corners, em_count, em_normal, em_radiance, em_area,
-                       samples, views[i], ks[i], ns[i], modes[i], H[i], S[i], classes, probe)
+                       samples, views[i], ks[i], ns[i], modes[i], H[i], S[i], classes, probe,
+                       lambert_first)
     return H, S
