@@ -166,28 +166,39 @@ def measure(path: Path, config: Path | None, size: tuple[int, int], shots: int,
     }
 
 
-def _probes(ctx: render.RenderContext, repeat: int) -> dict:
-    """The tiles of ``ctx`` with and without shadow probes, alternated ``repeat`` times, and
-    each image's error against a reference at 4× the shadow rays without probes."""
-    def tiles(c, probing):
-        keep = render.SHADOW_PROBES
-        render.SHADOW_PROBES = probing
-        try:
-            t = time.perf_counter()
-            return render.render(c), time.perf_counter() - t
-        finally:
-            render.SHADOW_PROBES = keep
+def _tiles_with(ctx: render.RenderContext, flag: str, value: bool):
+    """``(image, seconds)``: the tiles of ``ctx`` with :mod:`daskrad.render`'s module flag
+    ``flag`` set to ``value`` (restored after)."""
+    keep = getattr(render, flag)
+    setattr(render, flag, value)
+    try:
+        t = time.perf_counter()
+        return render.render(ctx), time.perf_counter() - t
+    finally:
+        setattr(render, flag, keep)
 
-    if ctx.lights is None:
-        return {}
+
+def _alternated(ctx: render.RenderContext, flag: str, repeat: int):
+    """``(seconds, images)`` keyed by the flag's value (False, True), the two arms alternated
+    ``repeat`` times (:func:`_tiles_with`)."""
     seconds = {True: [], False: []}
     images = {}
     for k in range(repeat):
-        for probing in ((False, True) if k % 2 == 0 else (True, False)):
-            images[probing], t = tiles(ctx, probing)
-            seconds[probing].append(t)
-    ref, _ = tiles(replace(ctx, lights=replace(ctx.lights, samples=2 * ctx.lights.samples)),
-                   False)
+        for value in ((False, True) if k % 2 == 0 else (True, False)):
+            images[value], t = _tiles_with(ctx, flag, value)
+            seconds[value].append(t)
+    return seconds, images
+
+
+def _probes(ctx: render.RenderContext, repeat: int) -> dict:
+    """The tiles of ``ctx`` with and without shadow probes, alternated ``repeat`` times, and
+    each image's error against a reference at 4× the shadow rays without probes."""
+    if ctx.lights is None:
+        return {}
+    seconds, images = _alternated(ctx, "SHADOW_PROBES", repeat)
+    ref, _ = _tiles_with(replace(ctx, lights=replace(ctx.lights,
+                                                     samples=2 * ctx.lights.samples)),
+                         "SHADOW_PROBES", False)
     scale = math.sqrt((ref**2).mean())
 
     def error(image):
@@ -212,23 +223,9 @@ def _probes(ctx: render.RenderContext, repeat: int) -> dict:
 def _lambert(ctx: render.RenderContext, repeat: int) -> dict:
     """The tiles of ``ctx`` with Lambert's ``F`` after the shadow rays and before them,
     alternated ``repeat`` times."""
-    def tiles(after):
-        keep = render.LAMBERT_AFTER_RAYS
-        render.LAMBERT_AFTER_RAYS = after
-        try:
-            t = time.perf_counter()
-            return render.render(ctx), time.perf_counter() - t
-        finally:
-            render.LAMBERT_AFTER_RAYS = keep
-
     if ctx.lights is None:
         return {}
-    seconds = {True: [], False: []}
-    images = {}
-    for k in range(repeat):
-        for after in ((False, True) if k % 2 == 0 else (True, False)):
-            images[after], t = tiles(after)
-            seconds[after].append(t)
+    seconds, images = _alternated(ctx, "LAMBERT_AFTER_RAYS", repeat)
     return {"tiles_lambert_first_s": float(np.median(seconds[False])),
             "tiles_lambert_after_s": float(np.median(seconds[True])),
             "lambert_after_speedup": float(np.median(seconds[False])

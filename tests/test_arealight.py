@@ -341,6 +341,17 @@ def _box_quads(lo, hi):
     return [c[list(f)] for f in faces]
 
 
+def _square_lights(centres, normals, half):
+    """``(n, 4, 3)``: squares of half-side ``half (n,)`` about ``centres (n, 3)`` in the
+    planes of the unit ``normals (n, 3)``, counter-clockwise about them."""
+    corners = np.empty((len(centres), 4, 3))
+    for m in range(len(centres)):
+        t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(*normals[m])
+        t1, t2 = np.array([t1x, t1y, t1z]), np.array([t2x, t2y, t2z])
+        corners[m] = centres[m] + half[m] * np.array([-t1 - t2, t1 - t2, t1 + t2, -t1 + t2])
+    return corners
+
+
 def test_early_stop_gives_the_same_bits_as_drawing_every_occluder():
     # A 4 × 3 × 4 room with 48 small lights facing every way, 8 of them shut inside closed
     # boxes, desks and pillars between them, and 400 points facing every way: the window
@@ -360,12 +371,7 @@ def test_early_stop_gives_the_same_bits_as_drawing_every_occluder():
     centres = rng.uniform([0.3, 0.3, 0.3], [3.7, 2.7, 3.7], size=(n_lights, 3))
     normals = rng.normal(size=(n_lights, 3))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    corners = np.empty((n_lights, 4, 3))
-    for m in range(n_lights):
-        t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(*normals[m])
-        t1, t2 = np.array([t1x, t1y, t1z]), np.array([t2x, t2y, t2z])
-        s = 0.06 + 0.1 * rng.random()
-        corners[m] = centres[m] + s * np.array([-t1 - t2, t1 - t2, t1 + t2, -t1 + t2])
+    corners = _square_lights(centres, normals, 0.06 + 0.1 * rng.random(n_lights))
     shut = np.arange(8)  # the first 8 lights sit inside closed boxes of their own
     boxes = [_box_quads(centres[m] - 0.25, centres[m] + 0.25) for m in shut]
     tris, faces = _faces([*room, *sum(blockers, []), *sum(boxes, []), *corners])
@@ -446,12 +452,8 @@ def test_walking_only_the_rows_and_cells_the_pyramid_reaches_finds_the_same_cand
     n_lights = 24
     normals = rng.normal(size=(n_lights, 3))
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    corners = np.empty((n_lights, 4, 3))
-    for m in range(n_lights):
-        t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(*normals[m])
-        t1, t2 = np.array([t1x, t1y, t1z]), np.array([t2x, t2y, t2z])
-        corners[m] = rng.uniform(0.1, 0.9, 3) + 0.05 * np.array(
-            [-t1 - t2, t1 - t2, t1 + t2, -t1 + t2])
+    corners = _square_lights(rng.uniform(0.1, 0.9, (n_lights, 3)), normals,
+                             np.full(n_lights, 0.05))
     lights = (corners, np.full(n_lights, 4, np.int64), normals, np.tile(LE, (n_lights, 1)))
     pts = rng.uniform(0.0, 1.0, size=(150, 3))
     nrm = rng.normal(size=pts.shape)
