@@ -1179,6 +1179,26 @@ def _touching(elem_verts: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     return (vertices[np.where(valid, elem_verts, 0)] & valid).any(axis=1)
 
 
+def _view_region(ctx: RenderContext, elem_verts: np.ndarray, n: int) -> np.ndarray:
+    """``(n,) bool``: the corners of the elements the view shows (:func:`seen_elements`: the
+    image's primary rays) and of every element sharing a corner with them."""
+    shown = _corners(elem_verts, seen_elements(ctx), n)
+    return _corners(elem_verts, _touching(elem_verts, shown), n)
+
+
+def _gathered(ctx: RenderContext, j: Junctions, vertices: np.ndarray, n: int) -> np.ndarray:
+    """``(n,) bool``: the gatherable vertices the junction gather takes, as far as
+    ``vertices (k,) int64`` decide it: those beside a junction (another surface within
+    ``j.reach``, :func:`daskrad.kernels.gather.near_surface`, each point on its own) and the
+    other corners of every element with such a vertex."""
+    from daskrad.kernels.gather import near_surface
+
+    near = near_surface(ctx.grid, j.points[vertices], j.normals[vertices], j.offset, j.reach, 4)
+    beside = np.zeros(n, bool)
+    beside[vertices[near]] = True
+    return _corners(j.elem_verts, _touching(j.elem_verts, beside), n) & j.gatherable
+
+
 def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
                      view: bool = False) -> np.ndarray:
     """``(V, 3)``: the change of vertex radiance when the indirect light of the vertices
@@ -1218,24 +1238,32 @@ def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
     ``j.vertex_indirect`` and ``j.vertex_rho`` are the current indirect radiance and the
     reflectance at each vertex.
     """
-    from daskrad.kernels.gather import near_surface
-
     V = len(ctx.vertex_radiance)
     delta = np.zeros((V, 3))
     elem_verts = j.elem_verts
     cand = np.flatnonzero(j.gatherable)
     if len(cand) == 0:
         return delta
-    near = near_surface(ctx.grid, j.points[cand], j.normals[cand], j.offset, j.reach, 4)
-    beside = np.zeros(V, bool)
-    beside[cand[near]] = True
-    # ... and the other corners of the elements with such a corner
-    gathered = _corners(elem_verts, _touching(elem_verts, beside), V) & j.gatherable
-    if view and gathered.sum() > GATHER_ALL:
-        # too many for the whole scene: the view region's only (whether a vertex is gathered
-        # does not depend on the region, only which are); the primary rays are cast only here
-        shown = _corners(elem_verts, seen_elements(ctx), V)
-        gathered &= _corners(elem_verts, _touching(elem_verts, shown), V)
+    gathered = None
+    region = None
+    if view and len(cand) > GATHER_ALL:
+        # The view region first (the elements shown and their neighbours' corners): whether a
+        # vertex of it is gathered depends only on the vertices of the elements touching it,
+        # so the search for surfaces nearby runs on those alone (graz: 5.6 % of 285,255).
+        # When the region alone has more than GATHER_ALL, so has the scene, and the answer is
+        # the one the whole search would restrict to the region; else the whole search
+        # decides, as below.
+        region = _view_region(ctx, elem_verts, V)
+        need = cand[_corners(elem_verts, _touching(elem_verts, region), V)[cand]]
+        gathered = _gathered(ctx, j, need, V) & region
+        if not gathered.sum() > GATHER_ALL:
+            gathered = None
+    if gathered is None:
+        gathered = _gathered(ctx, j, cand, V)
+        if view and gathered.sum() > GATHER_ALL:
+            # too many for the whole scene: the view region's only (whether a vertex is
+            # gathered does not depend on the region, only which are)
+            gathered &= region if region is not None else _view_region(ctx, elem_verts, V)
     idx = np.flatnonzero(gathered)
     if len(idx) == 0:
         return delta

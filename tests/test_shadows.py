@@ -200,6 +200,20 @@ def test_the_junction_gather_of_a_view_changes_only_the_corners_near_what_it_sho
     assert changed[corners(seen)].any() and not changed[~near].any()
     assert np.any(everywhere.vertex_radiance[~near] != ctx.vertex_radiance[~near])
     np.testing.assert_array_equal(whole.vertex_radiance, everywhere.vertex_radiance)
+    # Whatever GATHER_ALL, the view's gather is the whole gather restricted to the region or,
+    # below the threshold, the whole gather: the region is searched first for surfaces nearby
+    # and the whole scene only when the region alone does not exceed it, which must give the
+    # same bits as searching the whole scene first. As GATHER_ALL grows the answer turns from
+    # the region's to the whole one once, and never to anything else.
+    answers = []
+    for limit in range(0, len(h.vertices) + 1, max(1, len(h.vertices) // 40)):
+        monkeypatch.setattr(render, "GATHER_ALL", limit)
+        got = render.for_view(ctx).vertex_radiance
+        same = [np.array_equal(got, v.vertex_radiance) for v in (view, whole)]
+        assert any(same), limit
+        answers.append(same[1])
+    assert not answers[0] and answers[-1] and answers == sorted(answers)
+    monkeypatch.setattr(render, "GATHER_ALL", 0)
     # the image is the view's gather rendered (the stored context keeps the solution's values)
     assert view.junctions is None and ctx.junctions is not None
     image = render.pixels(ctx)
