@@ -242,16 +242,31 @@ def _check_random(scene, closed: bool):
     return h, sol
 
 
-@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# Derandomized: the same seeds every run, so that CI's answer does not depend on the draw. A
+# random draw found the soup below, kept as its own (failing) case.
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow],
+          derandomize=True)
 @given(seed=st.integers(0, 2**32 - 1))
 def test_random_closed_boxes(seed):
     _check_random(sc.random_box(np.random.default_rng(seed)), closed=True)
 
 
-@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow],
+          derandomize=True)
 @given(seed=st.integers(0, 2**32 - 1))
 def test_random_triangle_soups(seed):
     _check_random(sc.random_soup(np.random.default_rng(seed)), closed=False)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "issue 12: overshooting (relaxation 1.3) leaves 21 elements of this random soup with "
+    "B < 0 (down to -4.3e-5 against a largest B of 5.2; their patches' unshot is negative "
+    "too); plain shots keep B >= 0, which stress.py proves for plain shots only"))
+def test_random_soup_1428_keeps_radiosity_non_negative_when_overshot():
+    scene = sc.random_soup(np.random.default_rng(1428))
+    s = sc.box_settings_for(scene)
+    assert (sc.solve_recorded(scene, s.replace(relaxation=1.0))[2].radiosity >= 0).all()
+    assert (sc.solve_recorded(scene, s)[2].radiosity >= 0).all()
 
 
 def test_random_scene_same_bits_for_0_and_2_workers(rng, cluster_client):
