@@ -325,7 +325,7 @@ def test_sizes_larger_than_polygons(kind, rng):
     assert np.array_equal(h.vertices[ev][tri, :3], scene.vertices[scene.polygons[tri, :3]])
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=30, deadline=None, derandomize=True)
 # es ≥ 0.0625 on edges ≤ ~7 keeps every case below ~10⁵ elements (fast to check)
 @given(ps=st.floats(0.25, 5.0), ratio=st.floats(0.25, 2.0), seed=st.integers(0, 2**16))
 def test_invariants_random_sizes(ps, ratio, seed):
