@@ -211,20 +211,13 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
     # shadow rays of every light leave from pa: for a vertex on a junction (a wall's top edge
     # under the ceiling) a surface through the vertex is then met beyond the offset and
     # blocks, instead of letting light through the closed surface
-    ox = pa[0] + off * n[0]
-    oy = pa[1] + off * n[1]
-    oz = pa[2] + off * n[2]
     o = np.empty(3)
-    o[0] = ox
-    o[1] = oy
-    o[2] = oz
+    for k in range(3):
+        o[k] = pa[k] + off * n[k]
     aim_fan(fan, grid, o, n, off)
     d = np.empty(3)
     # ---- point lights
     for li in range(pl_pos.shape[0]):
-        d[0] = pl_pos[li, 0] - ox
-        d[1] = pl_pos[li, 1] - oy
-        d[2] = pl_pos[li, 2] - oz
         # cos θ / r² from the surface point itself (not the offset origin): exact I cosθ/r²
         rx = pl_pos[li, 0] - p[0]
         ry = pl_pos[li, 1] - p[1]
@@ -236,8 +229,7 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
         cos = (n[0] * rx + n[1] * ry + n[2] * rz) / r
         if cos <= 0.0:
             continue
-        dl = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-        if dl > 2.0 * off and any_hit_fan(grid, fan, o, d, off / dl, 1.0 - off / dl):
+        if not _unblocked(grid, fan, o, pl_pos[li], off, d):
             continue
         g = cos / r2
         for c in range(3):
@@ -266,6 +258,8 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
     # probing (the per-pixel pass): the light's four corner strata are traced first
     probing = probe and samples >= PROBE_SIDE
     seen = np.full(4 if probing else 0, -1, np.int8)   # per corner: -1 untraced, 0 blocked, 1 free
+    # F after the rays where nothing else needs it (lambert_first)
+    lazy = not (lambert_first or spec)
     for m in range(em_corners.shape[0]):
         out_class[m] = LIGHT_TRACE
         if modes[m] == LIGHT_HIDDEN:
@@ -280,8 +274,6 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
                 + en[2] * (p[2] - em_corners[m, 0, 2]))
         if side <= 0.0:
             continue
-        # F after the rays where nothing else needs it
-        lazy = not (lambert_first or spec)
         F = 0.0
         if not lazy:
             F = lambert_polygon(p[0], p[1], p[2], n[0], n[1], n[2], em_corners[m], cnt)
