@@ -8,7 +8,9 @@ at each of ``--omegas``, alternated ``--repeat`` times (medians, in this process
 shots, rows computed (distinct row keys: a re-shot reuses its patch's row), seconds, and the
 relative RMS distance of ``B`` from a reference solve at ``ω = 1`` to a thirtieth of the
 tolerance (the error the stopping rule leaves, which a lower shot count must not buy by
-stopping early).
+stopping early). The default ω runs once more with each patch's row chosen afresh at every
+shot (``solve.KEEP_ROWS = False``, the rule before each patch kept its first row), which let an
+overshot solve end with ``B < 0`` (column ``B < 0``: elements below zero).
 
 ``python -m benchmarks.bench_relaxation [--scene PATH --config TOML]... [--omegas W,W]
 [--repeat N]``; writes ``benchmarks/results/relaxation.json``.
@@ -23,7 +25,7 @@ import sys
 from pathlib import Path
 
 from benchmarks.bench_share import _rel_rms, _solve
-from daskrad import direct
+from daskrad import direct, solve
 from daskrad.distributed.executor import InProcess
 from daskrad.preprocess import preprocess
 from daskrad.scene import load_scene
@@ -42,19 +44,28 @@ def bench_scene(path, config, omegas: list[float], repeat: int) -> dict:
     h = light.mesh.hierarchy
     reference, _ = _solve(light, base.replace(relaxation=1.0,
                                               tolerance=base.tolerance * REFERENCE))
-    rows = {w: {"relaxation": w, "seconds": []} for w in [1.0, *omegas]}
+    # each ω with every patch keeping its first row (solve.KEEP_ROWS, the default), and the
+    # default ω with rows chosen afresh at every shot (the rule before)
+    arms = [(w, True) for w in [1.0, *omegas]] + [(base.relaxation, False)]
+    rows = {arm: {"relaxation": arm[0], "keep_rows": arm[1], "seconds": []} for arm in arms}
     for _ in range(repeat):
-        for w, r in rows.items():
-            sol, keys = _solve(light, base.replace(relaxation=w))
+        for (w, keep), r in rows.items():
+            solve.KEEP_ROWS = keep
+            try:
+                sol, keys = _solve(light, base.replace(relaxation=w))
+            finally:
+                solve.KEEP_ROWS = True
             r["seconds"].append(sol.seconds)
             r["shots"] = int(sol.iteration)
             r["converged"] = bool(sol.converged)
             r["rows"] = len(set(keys.tolist()))
             r["rel_rms_to_reference"] = _rel_rms(sol.radiosity, reference.radiosity)
+            r["negative_elements"] = int((sol.radiosity < 0).any(axis=1).sum())
+            r["min_radiosity"] = float(sol.radiosity.min())
     out = {"scene": Path(path).name, "elements": int(h.n_elements),
            "patches": int(h.n_patches), "tolerance": base.tolerance,
            "reference_shots": int(reference.iteration), "rows": []}
-    plain = rows[1.0]
+    plain = rows[(1.0, True)]
     for r in rows.values():
         r["median_seconds"] = statistics.median(r["seconds"])
         r["speedup"] = statistics.median(plain["seconds"]) / r["median_seconds"]
@@ -85,12 +96,13 @@ def main(argv: list[str] | None = None) -> list:
         print(f"\n{r['scene']}: {r['elements']:,} elements, {r['patches']:,} patches, to "
               f"tolerance {r['tolerance']:g} (reference: {r['reference_shots']:,} shots; "
               f"solve only, medians of {args.repeat})")
-        print(f"{'omega':>6} {'shots':>7} {'ratio':>6} {'rows':>6} {'seconds':>8} {'speedup':>8} "
-              f"{'RMS to ref':>10}")
+        print(f"{'omega':>6} {'rows kept':>9} {'shots':>7} {'ratio':>6} {'rows':>6} "
+              f"{'seconds':>8} {'speedup':>8} {'RMS to ref':>10} {'B < 0':>6}")
         for row in r["rows"]:
-            print(f"{row['relaxation']:>6g} {row['shots']:>7,} {row['shots_ratio']:>6.2f} "
+            print(f"{row['relaxation']:>6g} {'yes' if row['keep_rows'] else 'no':>9} "
+                  f"{row['shots']:>7,} {row['shots_ratio']:>6.2f} "
                   f"{row['rows']:>6,} {row['median_seconds']:>8.2f} {row['speedup']:>8.2f} "
-                  f"{row['rel_rms_to_reference']:>10.2e}")
+                  f"{row['rel_rms_to_reference']:>10.2e} {row['negative_elements']:>6,}")
         sys.stdout.flush()
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "relaxation.json").write_text(json.dumps(results, indent=1))

@@ -76,6 +76,10 @@ class Solution:
     """Row keys (:func:`row_keys`: shooter ids, ``+ P`` for a one-point row) of the batches
     chosen but not yet applied, in order. A checkpoint keeps them so a resumed run applies
     exactly the batches the uninterrupted run would have."""
+    row_kind: np.ndarray | None = None
+    """``(P,) int8``: the row each patch shoots through, fixed when it is first chosen to
+    shoot (:func:`row_keys`): 1 its penumbra-sampled row, 0 its one-point row, -1 not chosen
+    yet (None: no patch chosen yet). A checkpoint keeps it."""
 
 
 def unshot_rms(unshot: np.ndarray, patch_area: np.ndarray) -> float:
@@ -233,12 +237,27 @@ def sample_gate(h: Hierarchy, initial: Solution, share: float | None = None) -> 
 
 
 def row_keys(h: Hierarchy, sol: Solution, ids: np.ndarray, gate: float,
-             members=None) -> np.ndarray:
+             members=None, fix: bool = True) -> np.ndarray:
     """``(k,) int64``: the row each shooter ``ids`` shoots through
-    (:func:`daskrad.formfactor.shooting.row_key`): sampled when its exitance power
-    (:func:`patch_power`) is at least ``gate`` (:func:`sample_gate`), else from one point."""
+    (:func:`daskrad.formfactor.shooting.row_key`). A patch keeps the row it was first given
+    (``sol.row_kind``); a patch not given one yet gets its sampled row when its exitance
+    power (:func:`patch_power`) is at least ``gate`` (:func:`sample_gate`), else its
+    one-point row, and keeps it from now on (``fix``; False: only ask, as a prefetch does).
+
+    Why a patch keeps its row: every shot of a patch then goes through the same form
+    factors, so the light it takes back (a negative unshot, left by an overshoot, its own or
+    its sources') leaves along the rows its light came by. A patch that first shot from one
+    point and took light back through its sampled row sent light below zero to elements its
+    one point cannot see (a random soup, overshot: B down to -2.5e-4 where the converged
+    B is ~1e-4; 19 of 1,400 soups before, none since)."""
     ids = np.asarray(ids, np.int64)
-    sampled = patch_power(h, sol.radiosity, ids, members) >= gate
+    if sol.row_kind is None:
+        sol.row_kind = np.full(h.n_patches, -1, np.int8)
+    kind = sol.row_kind[ids]
+    sampled = np.where(kind >= 0, kind == 1,
+                       patch_power(h, sol.radiosity, ids, members) >= gate)
+    if fix:
+        sol.row_kind[ids] = sampled
     return shooting.row_key(ids, sampled, h.n_patches).astype(np.int64)
 
 
@@ -277,6 +296,10 @@ SURE = 1.01
 #: (2,000 shots) 34.5 / 33.7 → 35.4 / 33.2 s. In this process, alternating, medians: the
 #: 73k box 8.50 → 7.79 s (of 3), the cube 3.90 → 3.92 s (of 3), graz 30.1 → 29.8 s (of 2).
 PREFETCH = 8
+
+#: Whether a patch keeps the row it was first given (:func:`row_keys`). False chooses it
+#: afresh at every shot, as before: benchmarks/bench_relaxation.py's reference arm.
+KEEP_ROWS = True
 
 # A batch executor takes (batch number, the shooters' row keys, :func:`row_keys`) and returns
 # a handle whose result() is a list of (ids, factors) rows, one per shooter, in the same order.
@@ -338,7 +361,7 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
         room = max_iterations - sol.iteration - sum(len(p) for p, _ in pending)
         ids = next_batch(sol.unshot, h.patch_area, min(batch, room), exclude)
         if len(ids):
-            keys = row_keys(h, sol, ids, sample_gate, members)
+            keys = row_keys(h, sol, ids, sample_gate, members, fix=KEEP_ROWS)
             pending.append((keys, submit(batch_no, keys)))
             batch_no += 1
 
@@ -374,7 +397,7 @@ def solve(h: Hierarchy, reflectance: np.ndarray, sol: Solution, submit: Submit, 
             ahead = patches(np.concatenate([k for k, _ in pending]))
             room = min(PREFETCH * batch, max_iterations - sol.iteration - len(ahead))
             offer = next_batch(sol.unshot, h.patch_area, max(room, 0), ahead)
-            prefetch(row_keys(h, sol, offer, sample_gate, members))
+            prefetch(row_keys(h, sol, offer, sample_gate, members, fix=False))
         if on_batch is not None:
             on_batch(sol)
     if prefetch is not None:

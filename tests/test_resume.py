@@ -211,8 +211,33 @@ def test_a_store_from_before_overshooting_resumes_with_plain_shots(uninterrupted
     assert _format(meta) == "daskrad-solution/5"
     report = run(CORNELL, out, SETTINGS.replace(relaxation=1.0), progress=False, resume=True)
     assert report["iterations"] == SETTINGS.max_iterations
-    assert _format(meta) == FORMAT == "daskrad-solution/6"
+    assert _format(meta) == FORMAT == "daskrad-solution/7"
     np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
+
+
+def test_a_store_from_before_row_kinds_continues_and_keeps_them_from_then_on(uninterrupted,
+                                                                             tmp_path):
+    # a format-6 checkpoint holds no row_kind (the row each patch keeps): a run with more
+    # iterations continues from it, choosing the rows of the patches that shot already
+    # afresh, and its checkpoints hold row_kind from then on
+    import shutil
+
+    out, meta = _older_store(uninterrupted, tmp_path, (), "daskrad-solution/6")
+    slots = out.with_suffix(".zarr") / "internal" / "checkpoint"
+    for slot in (p for p in slots.iterdir() if p.is_dir()):
+        shutil.rmtree(slot / "row_kind")
+        doc = json.loads((slot / "zarr.json").read_text())
+        del doc["attributes"]["sha256"]["row_kind"]
+        (slot / "zarr.json").write_text(json.dumps(doc))
+    more = SETTINGS.replace(max_iterations=SETTINGS.max_iterations + 80)
+    report = run(CORNELL, out, more, progress=False, resume=True)
+    assert report["iterations"] == more.max_iterations
+    assert _format(meta) == FORMAT
+    last = _root_attrs(out.with_suffix(".zarr"))["checkpoint"]
+    import zarr
+
+    kinds = zarr.open_array(slots / str(last) / "row_kind", mode="r")[...]
+    assert set(np.unique(kinds)) <= {-1, 0, 1} and (kinds >= 0).sum() > 0
 
 
 def test_a_torn_checkpoint_leaves_the_previous_one(tmp_path):
@@ -229,7 +254,8 @@ def test_a_torn_checkpoint_leaves_the_previous_one(tmp_path):
     def state(i):
         return Solution(radiosity=rng.random((E, 3)), direct=rng.random((E, 3)),
                         unshot=rng.random((P, 3)), initial_rms=0.1 * i, iteration=8 * i,
-                        history=[(8 * i, 0.5, 1.0)], seconds=float(i), queued=[[1, 2]])
+                        history=[(8 * i, 0.5, 1.0)], seconds=float(i), queued=[[1, 2]],
+                        row_kind=rng.integers(-1, 2, P).astype(np.int8))
 
     store = Store(tmp_path / "t.zarr", Settings()).open()
     store.begin(h, np.full((E, 3), 0.5), state(0))
@@ -246,6 +272,7 @@ def test_a_torn_checkpoint_leaves_the_previous_one(tmp_path):
     np.testing.assert_array_equal(back.radiosity, last.radiosity)
     np.testing.assert_array_equal(back.unshot, last.unshot)
     np.testing.assert_array_equal(back.direct, last.direct)
+    np.testing.assert_array_equal(back.row_kind, last.row_kind)
     assert (back.iteration, back.queued, back.history) == (16, [[1, 2]], [(16, 0.5, 1.0)])
     assert back.initial_rms == last.initial_rms and back.seconds == last.seconds
 

@@ -153,11 +153,12 @@ def test_near_receiver_sharing_an_edge_averages_F_ji_over_its_area(n):
                                rtol={1: 0.01, 2: 0.003}[n])
 
 
-def test_row_keys_sample_a_shooter_by_its_share_of_the_brightest_and_keep_it_as_B_grows(rng):
+def test_row_keys_sample_a_shooter_by_its_share_of_the_brightest_and_it_keeps_that_row(rng):
     # the gate is share · the brightest patch's Σ_e∈p mean_rgb(B_e)·A_e before the first shot;
-    # sampled (key p) exactly when a shooter's power is at or above it, one point (key P + p)
-    # below; B only grows in a solve, and a larger B never turns a sampled shooter back to one
-    # point (its cached sampled row serves every re-shot)
+    # a patch first chosen is sampled (key p) exactly when its power is at or above it, one
+    # point (key P + p) below, and keeps that row whatever its B becomes (a re-shot, or the
+    # light an overshoot takes back, leaves along the rows its light came by); asking
+    # (fix=False, a prefetch) fixes nothing
     scene = box_scene(size=(1.0, 1.5, 2.0), diffuse=0.5, emission_per_face=0.1)
     settings = Settings(patch_size=0.5, element_size=0.25, resolution=32, max_iterations=0)
     h = solve_scene(scene, settings).hierarchy
@@ -173,14 +174,20 @@ def test_row_keys_sample_a_shooter_by_its_share_of_the_brightest_and_keep_it_as_
     assert gate == pytest.approx(np.median(power), rel=1e-12)
     assert solve.sample_gate(h, sol, 0.0) == 0.0
     ids = rng.permutation(h.n_patches)
-    keys = solve.row_keys(h, sol, ids, gate)
     sampled = power[ids] >= gate
     assert 0 < sampled.sum() < len(ids)
-    np.testing.assert_array_equal(keys, np.where(sampled, ids, ids + h.n_patches))
-    sol.radiosity = radiosity + rng.uniform(0.0, 0.1, radiosity.shape)
-    grown = solve.row_keys(h, sol, ids, gate)
-    assert np.all(grown[sampled] == ids[sampled]) and (grown < h.n_patches).sum() >= sampled.sum()
-    assert np.all(solve.row_keys(h, sol, ids, 0.0) == ids)    # gate 0: always sampled
+    expect = np.where(sampled, ids, ids + h.n_patches)
+    np.testing.assert_array_equal(solve.row_keys(h, sol, ids, gate, fix=False), expect)
+    assert (sol.row_kind == -1).all()                      # only asked
+    half = len(ids) // 2
+    assert not sampled[:half].all()
+    np.testing.assert_array_equal(solve.row_keys(h, sol, ids[:half], gate), expect[:half])
+    np.testing.assert_array_equal(sol.row_kind[ids[:half]], sampled[:half])
+    sol.radiosity = radiosity * 100.0                      # every patch above the gate now
+    np.testing.assert_array_equal(solve.row_keys(h, sol, ids, gate),
+                                  np.concatenate([expect[:half], ids[half:]]))
+    np.testing.assert_array_equal(solve.row_keys(h, sol, ids, 0.0),
+                                  np.concatenate([expect[:half], ids[half:]]))
 
 
 def test_the_default_shot_cap_follows_the_patch_count():

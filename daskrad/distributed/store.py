@@ -62,12 +62,15 @@ from daskrad.solve import Solution
 #: a reader of 4 would take for patch ids out of range.
 #: 6: the unshot radiosity may be below zero (overshot: ``--relaxation``), which a reader of 5
 #: would never shoot again.
-FORMAT = "daskrad-solution/6"
-#: The formats this daskrad reads: 5 is 6 solved without overshooting (no ``relaxation`` in
-#: its settings: :data:`SINCE`), 4 is 5 without one-point rows (every queued key is a patch
-#: id) and without ``sample_share``. An older store resumed is marked 6 before anything of the
-#: new run is written to it.
-READS = (FORMAT, "daskrad-solution/5", "daskrad-solution/4")
+#: 7: a checkpoint holds ``row_kind``, the row each patch keeps (:func:`daskrad.solve.row_keys`),
+#: without which a resume would choose the rows of patches that shot already afresh.
+FORMAT = "daskrad-solution/7"
+#: The formats this daskrad reads: 6 is 7 without ``row_kind`` (a resume chooses each patch's
+#: row again at its next shot, as 6 did at every shot), 5 is 6 solved without overshooting (no
+#: ``relaxation`` in its settings: :data:`SINCE`), 4 is 5 without one-point rows (every queued
+#: key is a patch id) and without ``sample_share``. An older store resumed is marked 7 before
+#: anything of the new run is written to it.
+READS = (FORMAT, "daskrad-solution/6", "daskrad-solution/5", "daskrad-solution/4")
 
 #: A task context's arrays are packed into one uint8 array ``blob`` of chunks this size
 #: (:meth:`Store.put_context`): zarr 3 costs ~5 ms to create an array, and a render context
@@ -134,6 +137,8 @@ SCHEMA = {
 SLOTS = 3
 _SLOT = {"radiosity": ("element", "rgb"), "direct": ("element", "rgb"),
          "unshot": ("patch", "rgb")}
+#: The checkpoint's arrays that a store of an older format may lack (None when read from it).
+_SLOT_SINCE = {"row_kind": ("patch",)}
 
 
 def _chunks(shape: tuple) -> tuple:
@@ -365,7 +370,7 @@ class Store:
             raise StoreError("cannot resume: the scene's " + " and ".join(parts)
                              + " changed since the store was written; run without --resume",
                              self.given)
-        if attrs.get("format") != FORMAT:    # every check passed: the run writes as 6
+        if attrs.get("format") != FORMAT:    # every check passed: the run writes as 7
             self.group.update_attributes({"format": FORMAT})
 
     @_whole
@@ -437,7 +442,13 @@ class Store:
             for name, a in arrays.items():
                 _put(s, name, a, np.float64, compress=False, dims=_SLOT[name],
                      units="W m-2", description=f"exact solver state: {name}")
-            s.attrs.put({**state, "sha256": {n: sha256(np.asarray(a, np.float64))
+            if sol.row_kind is not None:
+                arrays["row_kind"] = np.asarray(sol.row_kind, np.int8)
+                _put(s, "row_kind", arrays["row_kind"], compress=False,
+                     dims=_SLOT_SINCE["row_kind"], description="the row each patch shoots "
+                     "through: 1 penumbra-sampled, 0 one point, -1 not chosen yet")
+            s.attrs.put({**state, "sha256": {n: sha256(np.asarray(a, a.dtype if n in
+                                                                  _SLOT_SINCE else np.float64))
                                              for n, a in arrays.items()}})
         # only now is the slot complete: name it (one atomic zarr.json replacement; not
         # attrs.update, which zarr 3 writes key by key: a client killed between two keys left
@@ -519,7 +530,8 @@ class Store:
 
     def _read_slot(self, slot: int, a: dict) -> Solution:
         s = self.group[f"internal/checkpoint/{slot}"]
-        arrays = {n: read_checked(s, n, self.given) for n in _SLOT}
+        names = [*_SLOT, *(n for n in _SLOT_SINCE if n in a.get("sha256", {}))]
+        arrays = {n: read_checked(s, n, self.given) for n in names}
         for n, x in arrays.items():
             if a.get("sha256", {}).get(n) != sha256(x):
                 raise StoreError(f"internal/checkpoint/{slot}/{n} does not match its "
@@ -532,7 +544,8 @@ class Store:
             radiosity=arrays["radiosity"], direct=arrays["direct"], unshot=arrays["unshot"],
             initial_rms=a["initial_rms"], iteration=a["iteration"],
             history=[tuple(x) for x in a["history"]], converged=a["converged"],
-            seconds=a["seconds"], queued=[list(q) for q in a["queued"]])
+            seconds=a["seconds"], queued=[list(q) for q in a["queued"]],
+            row_kind=arrays.get("row_kind"))
 
     @_whole
     def finish(self, image) -> None:

@@ -28,10 +28,12 @@ beyond.
 
 ``B ≥ 0`` and ``B ≤ max(E)/(1 − ρ_max)`` are proved for plain shots only: every plain shot adds
 a non-negative ``ρ_j ΔB_i F_ij A_i/A_j`` and the total stays below the Neumann series' bound.
-Overshot, a later shot of a patch takes its excess back (a negative ``ΔB_i``, through rows of
-other samples when the patch crossed the sample gate between shots), so a receiver may in
-principle dip below what it had: :func:`safety` checks both at every ω as observed facts of
-its scenes, not as consequences of the arithmetic.
+Overshot, a later shot of a patch takes its excess back (a negative ``ΔB_i``), so a receiver
+may in principle dip below what it had: :func:`safety` checks both at every ω as observed
+facts of its scenes, not as consequences of the arithmetic. Each patch shoots through one row
+for the whole solve (:func:`daskrad.solve.row_keys`), so light taken back leaves along the
+rows the light came by; while a patch could switch rows at the sample gate, 19 of 1,400
+random soups ended overshot with ``B < 0`` (none since).
 """
 
 from __future__ import annotations
