@@ -162,23 +162,21 @@ def next_batch(unshot: np.ndarray, patch_area: np.ndarray, k: int,
     return chosen[np.lexsort((chosen, -power[chosen]))].astype(np.int64)
 
 
-#: A shooter whose patch has sent and holds less than this share of the brightest patch's
-#: power before the first shot shoots from one point, not from the penumbra samples of
-#: :func:`daskrad.formfactor.shooting.shooter_points` (a sixth of the work in a furnished
-#: room, where nearly every patch has an occluder near it). The measure is the patch's
-#: exitance power ``B̄_p · A_p`` (mean over channels): everything it ever shoots has arrived
-#: in ``B``, and ``B`` only grows (but for the small take-backs of overshot light,
-#: :data:`RELAXATION`), so a patch that once shot sampled keeps its sampled row (the cached
-#: one) for its re-shots. The gate is a share of the brightest patch (an emitter,
-#: or the most directly lit surface), not of the scene's whole light: with dozens of
-#: luminaires over 14,144 patches (RenderPark's classroom) no patch holds 1 % of the whole,
-#: and a share of the whole that speeds up a box lit by one light sent every shot of the
-#: classroom from one point (5.0e-2 from a converged solution). The error such a shot makes
-#: is the penumbra sampling's (a few per cent of the shot's light, moved between receivers
-#: near an occluder, not lost) times light that is small beside the brightest shooter's
-#: (``benchmarks/bench_share.py``, 4,000 shots: the classroom 1.7× faster than sampling
-#: every shot, 2.07e-3 from a converged solution against 1.72e-3; the Cornell box 2× faster
-#: at 6.7e-4 against 1.3e-4, its image against the path tracer unchanged).
+#: A shooter whose patch has sent and holds less than this share of the brightest patch's power
+#: before the first shot shoots from one point, not from the penumbra samples of
+#: :func:`daskrad.formfactor.shooting.shooter_points` (a sixth of the work in a furnished room,
+#: where nearly every patch has an occluder near it). The measure is the patch's exitance power
+#: ``B̄_p · A_p`` (mean over channels) when the patch is first chosen to shoot, and it keeps the row
+#: it was given for every re-shot (:func:`row_keys`). The gate is a share of the brightest patch (an
+#: emitter, or the most directly lit surface), not of the scene's whole light: with dozens of
+#: luminaires over 14,144 patches (RenderPark's classroom) no patch holds 1 % of the whole, and a
+#: share of the whole that speeds up a box lit by one light sent every shot of the classroom from
+#: one point (5.0e-2 from a converged solution). The error such a shot makes is the penumbra
+#: sampling's (a few per cent of the shot's light, moved between receivers near an occluder, not
+#: lost) times light that is small beside the brightest shooter's (``benchmarks/bench_share.py``,
+#: 4,000 shots, measured while a patch's row still followed its power at every shot: the classroom
+#: 1.7× faster than sampling every shot, 2.07e-3 from a converged solution against 1.72e-3; the
+#: Cornell box 2× faster at 6.7e-4 against 1.3e-4, its image against the path tracer unchanged).
 SAMPLE_SHARE = 0.03        # the default of Settings.sample_share
 
 #: The overshooting factor ``ω`` of every shot (the default of Settings.relaxation): a shot
@@ -254,8 +252,10 @@ def row_keys(h: Hierarchy, sol: Solution, ids: np.ndarray, gate: float,
     if sol.row_kind is None:
         sol.row_kind = np.full(h.n_patches, -1, np.int8)
     kind = sol.row_kind[ids]
-    sampled = np.where(kind >= 0, kind == 1,
-                       patch_power(h, sol.radiosity, ids, members) >= gate)
+    sampled = kind == 1
+    new = kind < 0
+    if new.any():
+        sampled[new] = patch_power(h, sol.radiosity, ids[new], members) >= gate
     if fix:
         sol.row_kind[ids] = sampled
     return shooting.row_key(ids, sampled, h.n_patches).astype(np.int64)
@@ -298,7 +298,9 @@ SURE = 1.01
 PREFETCH = 8
 
 #: Whether a patch keeps the row it was first given (:func:`row_keys`). False chooses it
-#: afresh at every shot, as before: benchmarks/bench_relaxation.py's reference arm.
+#: afresh at every shot, as before: benchmarks/bench_relaxation.py's reference arm (a
+#: benchmark's switch, not a setting: a solve resumed from a checkpoint follows the kinds it
+#: holds either way).
 KEEP_ROWS = True
 
 # A batch executor takes (batch number, the shooters' row keys, :func:`row_keys`) and returns

@@ -240,6 +240,68 @@ def test_a_store_from_before_row_kinds_continues_and_keeps_them_from_then_on(uni
     assert set(np.unique(kinds)) <= {-1, 0, 1} and (kinds >= 0).sum() > 0
 
 
+def test_more_iterations_continue_a_finished_run_to_the_straight_runs_bits(uninterrupted,
+                                                                            tmp_path):
+    # a run stopped at 320 shots and continued to 480 gives the straight run's bits: the
+    # continue slot holds each patch's row kind as it was at that state (on this mesh, states
+    # from ~230 to ~390 shots continued with only the queued batches' kinds, the others
+    # chosen afresh, end with other bits)
+    out = tmp_path / "half.exr"
+    run(CORNELL, out, SETTINGS.replace(max_iterations=320), progress=False)
+    report = run(CORNELL, out, SETTINGS, progress=False, resume=True)
+    assert report["iterations"] == SETTINGS.max_iterations
+    np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
+
+
+def _slot_store(tmp_path: Path, row_kind):
+    """``(h, store path, solution)``: a store holding one checkpoint of a small box whose
+    batch in flight names patch 1's sampled row and patch 2's one-point row."""
+    from daskrad.mesh import build_hierarchy
+    from daskrad.scene import box_scene
+    from daskrad.solve import Solution
+
+    h = build_hierarchy(box_scene(emission_per_face=0.1), 0.5, 0.25)
+    E, P = h.n_elements, h.n_patches
+    sol = Solution(radiosity=np.ones((E, 3)), direct=np.ones((E, 3)), unshot=np.ones((P, 3)),
+                   initial_rms=1.0, iteration=8, history=[(8, 0.5, 1.0)],
+                   queued=[[1, 2 + P]], row_kind=row_kind(P))
+    store = Store(tmp_path / "t.zarr", Settings()).open()
+    store.begin(h, np.full((E, 3), 0.5), sol)
+    store.checkpoint(sol)
+    return h, tmp_path / "t.zarr", sol
+
+
+def test_a_format_6_checkpoint_keeps_the_rows_of_the_batches_in_flight(tmp_path):
+    # without row_kind (a format-6 slot) the patches of the queued batches keep the rows they
+    # were queued with (key p: sampled, P + p: one point); the others are chosen afresh
+    h, path, _ = _slot_store(tmp_path, lambda P: np.zeros(P, np.int8))
+    slot = path / "internal" / "checkpoint" / str(_root_attrs(path)["checkpoint"])
+    import shutil
+
+    shutil.rmtree(slot / "row_kind")
+    doc = json.loads((slot / "zarr.json").read_text())
+    del doc["attributes"]["sha256"]["row_kind"]
+    (slot / "zarr.json").write_text(json.dumps(doc))
+    back = Store(path, Settings(), resume=True).open().load_checkpoint(h)
+    expect = np.full(h.n_patches, -1, np.int8)
+    expect[1], expect[2] = 1, 0
+    np.testing.assert_array_equal(back.row_kind, expect)
+
+
+@pytest.mark.parametrize("bad", ["short", "value"])
+def test_a_checkpoint_whose_row_kinds_do_not_fit_the_mesh_is_refused(tmp_path, bad):
+    # a row_kind of the wrong length, or a kind other than -1, 0, 1, is a StoreError naming
+    # the slot (not an IndexError mid-solve)
+    from daskrad.errors import StoreError
+
+    def kinds(P):
+        return np.zeros(P - 1, np.int8) if bad == "short" else np.full(P, 5, np.int8)
+
+    h, path, _ = _slot_store(tmp_path, kinds)
+    with pytest.raises(StoreError, match=r"internal/checkpoint/\d does not hold the state"):
+        Store(path, Settings(), resume=True).open().load_checkpoint(h)
+
+
 def test_a_torn_checkpoint_leaves_the_previous_one(tmp_path):
     # A client killed while writing a slot has not yet named it in the root attributes:
     # reading gives the previous checkpoint, bit for bit.

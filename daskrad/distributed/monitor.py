@@ -130,7 +130,8 @@ def _snapshot(sol: solve.Solution) -> solve.Solution:
     """A copy of ``sol`` the solve will not change (its arrays are updated in place)."""
     return dataclasses.replace(sol, radiosity=sol.radiosity.copy(), direct=sol.direct.copy(),
                                unshot=sol.unshot.copy(), history=list(sol.history),
-                               queued=list(sol.queued))
+                               queued=list(sol.queued),
+                               row_kind=None if sol.row_kind is None else sol.row_kind.copy())
 
 
 def _fraction(rms: float, tolerance: float, converged: bool) -> float:

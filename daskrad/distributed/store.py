@@ -11,7 +11,8 @@ Only the client writes; workers open it read-only, so every chunk has one writer
     materials/{diffuse,emission,specular,shininess,mirror}
     lights/{point_position,point_intensity,directional_direction,directional_irradiance}
     vertex_radiance, vertex_radiance_direct (vertex, rgb) f4, vertex_radiosity (vertex, rgb) f4
-    internal/checkpoint/{0,1,2}                       the exact solver state (f8), three slots
+    internal/checkpoint/{0,1,2}                       the exact solver state (f8, and each
+                                                      patch's row_kind, i1), three slots
                                                       written in turn
     internal/context/{shoot,direct,gather,render}/blob  what the worker tasks (and
                                                       ``daskrad render``/``export``) read,
@@ -513,7 +514,7 @@ class Store:
             if not usable:
                 continue
             try:
-                sol = self._read_slot(slot, a)
+                sol = self._read_slot(slot, a, h.n_patches)
             except StoreError:
                 if slot == latest:
                     raise
@@ -528,7 +529,7 @@ class Store:
             "where a run with these criteria would have stopped; only a smaller tolerance or "
             "more iterations continue a store; run without --resume", self.given)
 
-    def _read_slot(self, slot: int, a: dict) -> Solution:
+    def _read_slot(self, slot: int, a: dict, n_patches: int) -> Solution:
         s = self.group[f"internal/checkpoint/{slot}"]
         names = [*_SLOT, *(n for n in _SLOT_SINCE if n in a.get("sha256", {}))]
         arrays = {n: read_checked(s, n, self.given) for n in names}
@@ -540,12 +541,24 @@ class Store:
             if not np.isfinite(x).all():
                 raise StoreError(f"internal/checkpoint/{slot}/{n} holds NaN or infinite "
                                  "values; run again without --resume", self.given)
+        queued = [list(q) for q in a["queued"]]
+        kind = arrays.get("row_kind")
+        if kind is None:
+            # a format-6 checkpoint: the patches of the batches in flight keep the rows they
+            # were queued with; the others are chosen at their next shot
+            kind = np.full(n_patches, -1, np.int8)
+            keys = np.asarray([k for q in queued for k in q], np.int64)
+            kind[keys % n_patches] = keys < n_patches
+        if (arrays["unshot"].shape != (n_patches, 3) or kind.shape != (n_patches,)
+                or not np.isin(kind, (-1, 0, 1)).all()):
+            raise StoreError(f"internal/checkpoint/{slot} does not hold the state of this "
+                             f"mesh's {n_patches} patches; run again without --resume",
+                             self.given)
         return Solution(
             radiosity=arrays["radiosity"], direct=arrays["direct"], unshot=arrays["unshot"],
             initial_rms=a["initial_rms"], iteration=a["iteration"],
             history=[tuple(x) for x in a["history"]], converged=a["converged"],
-            seconds=a["seconds"], queued=[list(q) for q in a["queued"]],
-            row_kind=arrays.get("row_kind"))
+            seconds=a["seconds"], queued=queued, row_kind=kind)
 
     @_whole
     def finish(self, image) -> None:

@@ -397,10 +397,10 @@ ROW_BYTES_PER_FACTOR = 12
 def row_cache_bytes(ctx: ShootContext, memory: int) -> int:
     """The row cache's budget for ``ctx`` in a process with ``memory`` bytes: every row when
     they fit, else ``ROW_CACHE_SHARE`` of the memory. A row has at most ``E`` nonzeros and a
-    patch has at most two rows (sampled, and from one point once its power is low:
-    :func:`daskrad.solve.row_keys`), so ``12 · 2P · E`` bytes bound them all (the Cornell
-    box's 309 × 7,295: 54 MB). Rows beyond the budget are computed again when their patch
-    shoots again (the same bits, more time)."""
+    patch has at most two rows (sampled and from one point: a patch keeps the one it is first
+    given, :func:`daskrad.solve.row_keys`, but a row computed ahead may guess the other), so
+    ``12 · 2P · E`` bytes bound them all (the Cornell box's 309 × 7,295: 54 MB). Rows beyond
+    the budget are computed again when their patch shoots again (the same bits, more time)."""
     everything = ROW_BYTES_PER_FACTOR * 2 * len(ctx.patch_area) * len(ctx.elem_area)
     return int(max(0, min(everything, ROW_CACHE_SHARE * memory)))
 
