@@ -174,9 +174,9 @@ def next_batch(unshot: np.ndarray, patch_area: np.ndarray, k: int,
 #: one point (5.0e-2 from a converged solution). The error such a shot makes is the penumbra
 #: sampling's (a few per cent of the shot's light, moved between receivers near an occluder, not
 #: lost) times light that is small beside the brightest shooter's (``benchmarks/bench_share.py``,
-#: 4,000 shots, measured while a patch's row still followed its power at every shot: the classroom
-#: 1.7× faster than sampling every shot, 2.07e-3 from a converged solution against 1.72e-3; the
-#: Cornell box 2× faster at 6.7e-4 against 1.3e-4, its image against the path tracer unchanged).
+#: 4,000 shots: the classroom 2.26× faster than sampling every shot, 1.83e-3 from a converged
+#: solution against 1.56e-3; the Cornell box, 1,500 shots, 2.26× faster at 6.8e-4 against 6.3e-7,
+#: its image against the path tracer unchanged in an earlier stop's measure).
 SAMPLE_SHARE = 0.03        # the default of Settings.sample_share
 
 #: The overshooting factor ``ω`` of every shot (the default of Settings.relaxation): a shot
@@ -192,9 +192,9 @@ SAMPLE_SHARE = 0.03        # the default of Settings.sample_share
 #: spared more shots and left the error of plain shots (bench_relaxation's scenes).
 #: Measured (benchmarks/bench_relaxation.py, solves to the default tolerance, ω = 1 → 1.3):
 #: shots, Cornell box 1,563 → 944, lit room 332 → 254, RenderPark's cube 1,711 → 1,246,
-#: office2 5,302 → 3,752, office3 11,266 → 9,782; the distance of B from a solve converged
-#: 30× further, 9.7e-5 → 3.0e-5, 1.2e-4 → 9.4e-5, 2.4e-4 → 9.7e-5, 2.1e-4 → 1.2e-4,
-#: 1.42e-3 → 1.34e-3. Solve seconds 0.90–1.03 × plain (first shots, the rows, are most of a
+#: office2 5,300 → 3,749, office3 11,266 → 9,782; the distance of B from a solve converged
+#: 30× further, 9.7e-5 → 3.0e-5, 1.2e-4 → 6.4e-5, 2.4e-4 → 9.7e-5, 2.2e-4 → 1.1e-4,
+#: 1.42e-3 → 1.34e-3. Solve seconds 0.80–1.05 × plain (first shots, the rows, are most of a
 #: solve, and overshooting does not spare them). 1.2 spares as many shots and is less
 #: accurate but in the lit room; 1.5 spares fewer. The ambient term, a signed mean of the
 #: unshot radiosity, may come out negative for an unconverged solve.
