@@ -302,6 +302,33 @@ def test_a_checkpoint_whose_row_kinds_do_not_fit_the_mesh_is_refused(tmp_path, b
         Store(path, Settings(), resume=True).open().load_checkpoint(h)
 
 
+@pytest.mark.parametrize("damage", ["queued out of range", "queued text", "iteration text",
+                                    "no history", "garbled"])
+def test_a_checkpoint_with_damaged_state_attributes_is_refused_in_one_line(tmp_path, damage):
+    # the last checkpoint's zarr.json edited or garbled: a StoreError naming it (one line,
+    # exit 2 from the CLI), not an IndexError or a JSONDecodeError traceback mid-resume
+    from daskrad.errors import StoreError
+
+    h, path, _ = _slot_store(tmp_path, lambda P: np.zeros(P, np.int8))
+    meta = path / "internal" / "checkpoint" / str(_root_attrs(path)["checkpoint"]) / "zarr.json"
+    if damage == "garbled":
+        meta.write_text(meta.read_text()[:40])
+    else:
+        doc = json.loads(meta.read_text())
+        attrs = doc["attributes"]
+        if damage == "queued out of range":
+            attrs["queued"] = [[99999]]
+        elif damage == "queued text":
+            attrs["queued"] = [["a"]]
+        elif damage == "iteration text":
+            attrs["iteration"] = "x"
+        else:
+            del attrs["history"]
+        meta.write_text(json.dumps(doc))
+    with pytest.raises(StoreError, match=r"internal/checkpoint/\d/zarr.json"):
+        Store(path, Settings(), resume=True).open().load_checkpoint(h)
+
+
 def test_a_torn_checkpoint_leaves_the_previous_one(tmp_path):
     # A client killed while writing a slot has not yet named it in the root attributes:
     # reading gives the previous checkpoint, bit for bit.

@@ -194,6 +194,31 @@ def read_checked(group, name: str, path: str) -> np.ndarray:
     return data
 
 
+def _state_attrs(a: dict, n_patches: int, where: str, given: str) -> list[list[int]]:
+    """The queued batches of checkpoint attributes ``a``, after checking that its state
+    attributes have their types (a hand-edited or damaged zarr.json: :class:`StoreError`
+    naming it, not a traceback mid-solve): ``iteration`` a count, ``queued`` batches of row
+    keys below ``2P``, ``history`` rows of three numbers, ``seconds`` and ``initial_rms``
+    finite numbers."""
+    def number(x):
+        return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+    try:
+        queued = [[int(k) for k in q] for q in a["queued"]
+                  if all(isinstance(k, int) and not isinstance(k, bool) for k in q)]
+        ok = (isinstance(a["iteration"], int) and a["iteration"] >= 0
+              and len(queued) == len(a["queued"])
+              and all(0 <= k < 2 * n_patches for q in queued for k in q)
+              and all(len(r) == 3 and all(number(x) for x in r) for r in a["history"])
+              and number(a["seconds"]) and number(a["initial_rms"]))
+    except (KeyError, TypeError):
+        ok = False
+    if not ok:
+        raise StoreError(f"{where}/zarr.json does not hold a checkpoint's state (iteration, "
+                         "queued batches, history); run again without --resume", given)
+    return queued
+
+
 def _where(group, name: str) -> str:
     return f"{group.path}/{name}".lstrip("/")
 
@@ -496,6 +521,12 @@ class Store:
                                      "missing; run again without --resume",
                                      self.given) from None
                 continue
+            except Exception as err:  # noqa: BLE001 - a garbled zarr.json: one line
+                if slot == latest:
+                    raise StoreError(f"internal/checkpoint/{slot}/zarr.json, the last "
+                                     f"checkpoint's, cannot be read ({type(err).__name__}); "
+                                     "run again without --resume", self.given) from None
+                continue
             if a.get("generation") != h.generation:
                 if slot == latest:
                     return None
@@ -541,7 +572,7 @@ class Store:
             if not np.isfinite(x).all():
                 raise StoreError(f"internal/checkpoint/{slot}/{n} holds NaN or infinite "
                                  "values; run again without --resume", self.given)
-        queued = [list(q) for q in a["queued"]]
+        queued = _state_attrs(a, n_patches, f"internal/checkpoint/{slot}", self.given)
         kind = arrays.get("row_kind")
         if kind is None:
             # a format-6 checkpoint: the patches of the batches in flight keep the rows they
