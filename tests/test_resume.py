@@ -329,6 +329,23 @@ def test_a_checkpoint_with_damaged_state_attributes_is_refused_in_one_line(tmp_p
         Store(path, Settings(), resume=True).open().load_checkpoint(h)
 
 
+def test_a_damaged_slot_to_continue_from_is_named_not_the_stopping_criteria(uninterrupted,
+                                                                             tmp_path):
+    # more iterations continue from the "continue" slot; when its bytes are damaged the
+    # refusal names that array, not "past where a run with these criteria would have stopped"
+    out, meta = _older_store(uninterrupted, tmp_path, (), FORMAT)
+    slot = _root_attrs(out.with_suffix(".zarr"))["continue"]
+    chunks = out.with_suffix(".zarr") / "internal" / "checkpoint" / str(slot) / "radiosity"
+    chunk = next(p for p in sorted(chunks.rglob("*")) if p.is_file() and p.name != "zarr.json")
+    data = bytearray(chunk.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    chunk.write_bytes(bytes(data))
+    more = SETTINGS.replace(max_iterations=SETTINGS.max_iterations + 80)
+    with pytest.raises(OptionError, match=rf"continue from, internal/checkpoint/{slot}/radiosity "
+                                          r"is damaged"):
+        run(CORNELL, out, more, progress=False, resume=True)
+
+
 def test_a_torn_checkpoint_leaves_the_previous_one(tmp_path):
     # A client killed while writing a slot has not yet named it in the root attributes:
     # reading gives the previous checkpoint, bit for bit.

@@ -507,6 +507,7 @@ class Store:
         tol, maxit = float(self.settings.tolerance), int(self.settings.max_iterations)
         tried = []
         tighter = False
+        damaged: StoreError | None = None    # an older slot this resume could have used
         others = [x for x in range(SLOTS) if x != latest]
         cont = self.group.attrs.get("continue")
         if cont in others:                  # the last open checkpoint first, then the other
@@ -546,12 +547,19 @@ class Store:
                 continue
             try:
                 sol = self._read_slot(slot, a, h.n_patches)
-            except StoreError:
+            except StoreError as err:
                 if slot == latest:
                     raise
+                damaged = damaged or err
                 continue                     # torn while written: the older slot only
             self._slot, self._written = slot, (int(a["iteration"]), len(a["history"]))
             return sol
+        if damaged is not None:
+            # the slot these criteria continue from is unreadable: say so, not that the
+            # criteria are past the store's answer
+            raise StoreError(f"cannot resume with tolerance={tol:g}, max_iterations={maxit}: "
+                             f"the checkpoint it would continue from, {damaged.message}",
+                             self.given)
         a = tried[0] if tried else {}
         raise StoreError(
             f"cannot resume with tolerance={tol:g}, max_iterations={maxit}: the store's "
