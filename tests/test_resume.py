@@ -215,20 +215,26 @@ def test_a_store_from_before_overshooting_resumes_with_plain_shots(uninterrupted
     np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
 
 
+def _without_row_kind(slot: Path) -> None:
+    """Make checkpoint slot ``slot`` (a directory) as format 6 wrote it: no ``row_kind``
+    array and no checksum for one."""
+    import shutil
+
+    shutil.rmtree(slot / "row_kind")
+    doc = json.loads((slot / "zarr.json").read_text())
+    del doc["attributes"]["sha256"]["row_kind"]
+    (slot / "zarr.json").write_text(json.dumps(doc))
+
+
 def test_a_store_from_before_row_kinds_continues_and_keeps_them_from_then_on(uninterrupted,
                                                                              tmp_path):
     # a format-6 checkpoint holds no row_kind (the row each patch keeps): a run with more
     # iterations continues from it, choosing the rows of the patches that shot already
     # afresh, and its checkpoints hold row_kind from then on
-    import shutil
-
     out, meta = _older_store(uninterrupted, tmp_path, (), "daskrad-solution/6")
     slots = out.with_suffix(".zarr") / "internal" / "checkpoint"
     for slot in (p for p in slots.iterdir() if p.is_dir()):
-        shutil.rmtree(slot / "row_kind")
-        doc = json.loads((slot / "zarr.json").read_text())
-        del doc["attributes"]["sha256"]["row_kind"]
-        (slot / "zarr.json").write_text(json.dumps(doc))
+        _without_row_kind(slot)
     more = SETTINGS.replace(max_iterations=SETTINGS.max_iterations + 80)
     report = run(CORNELL, out, more, progress=False, resume=True)
     assert report["iterations"] == more.max_iterations
@@ -275,13 +281,7 @@ def test_a_format_6_checkpoint_keeps_the_rows_of_the_batches_in_flight(tmp_path)
     # without row_kind (a format-6 slot) the patches of the queued batches keep the rows they
     # were queued with (key p: sampled, P + p: one point); the others are chosen afresh
     h, path, _ = _slot_store(tmp_path, lambda P: np.zeros(P, np.int8))
-    slot = path / "internal" / "checkpoint" / str(_root_attrs(path)["checkpoint"])
-    import shutil
-
-    shutil.rmtree(slot / "row_kind")
-    doc = json.loads((slot / "zarr.json").read_text())
-    del doc["attributes"]["sha256"]["row_kind"]
-    (slot / "zarr.json").write_text(json.dumps(doc))
+    _without_row_kind(path / "internal" / "checkpoint" / str(_root_attrs(path)["checkpoint"]))
     back = Store(path, Settings(), resume=True).open().load_checkpoint(h)
     expect = np.full(h.n_patches, -1, np.int8)
     expect[1], expect[2] = 1, 0

@@ -200,15 +200,16 @@ def _state_attrs(a: dict, n_patches: int, where: str, given: str) -> list[list[i
     naming it, not a traceback mid-solve): ``iteration`` a count, ``queued`` batches of row
     keys below ``2P``, ``history`` rows of three numbers, ``seconds`` and ``initial_rms``
     finite numbers."""
+    def count(x):
+        return isinstance(x, int) and not isinstance(x, bool) and x >= 0
+
     def number(x):
         return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
-    try:
-        queued = [[int(k) for k in q] for q in a["queued"]
-                  if all(isinstance(k, int) and not isinstance(k, bool) for k in q)]
-        ok = (isinstance(a["iteration"], int) and a["iteration"] >= 0
-              and len(queued) == len(a["queued"])
-              and all(0 <= k < 2 * n_patches for q in queued for k in q)
+    try:      # a value of another type (an int where a list belongs) raises TypeError
+        queued = [list(q) for q in a["queued"]]
+        ok = (count(a["iteration"])
+              and all(count(k) and k < 2 * n_patches for q in queued for k in q)
               and all(len(r) == 3 and all(number(x) for x in r) for r in a["history"])
               and number(a["seconds"]) and number(a["initial_rms"]))
     except (KeyError, TypeError):
@@ -464,18 +465,18 @@ class Store:
             busy = {g.attrs.get("checkpoint"), g.attrs.get("continue"), self._slot}
             slot = min(x for x in range(SLOTS) if x not in busy)
             s = g.require_group("internal").require_group("checkpoint").require_group(str(slot))
-            arrays = {"radiosity": sol.radiosity, "direct": sol.direct, "unshot": sol.unshot}
+            arrays = {n: np.asarray(a, np.float64) for n, a in
+                      (("radiosity", sol.radiosity), ("direct", sol.direct),
+                       ("unshot", sol.unshot))}
             for name, a in arrays.items():
-                _put(s, name, a, np.float64, compress=False, dims=_SLOT[name],
+                _put(s, name, a, compress=False, dims=_SLOT[name],
                      units="W m-2", description=f"exact solver state: {name}")
             if sol.row_kind is not None:
                 arrays["row_kind"] = np.asarray(sol.row_kind, np.int8)
                 _put(s, "row_kind", arrays["row_kind"], compress=False,
                      dims=_SLOT_SINCE["row_kind"], description="the row each patch shoots "
                      "through: 1 penumbra-sampled, 0 one point, -1 not chosen yet")
-            s.attrs.put({**state, "sha256": {n: sha256(np.asarray(a, a.dtype if n in
-                                                                  _SLOT_SINCE else np.float64))
-                                             for n, a in arrays.items()}})
+            s.attrs.put({**state, "sha256": {n: sha256(a) for n, a in arrays.items()}})
         # only now is the slot complete: name it (one atomic zarr.json replacement; not
         # attrs.update, which zarr 3 writes key by key: a client killed between two keys left
         # "checkpoint" naming this slot beside the previous iteration and history)
