@@ -51,6 +51,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
     seconds: dict[str, float] = {}
     t = start = time.perf_counter()
     early = start_early(settings) if executor is None else None   # starts as the scene loads
+    copied = False
     try:
         scene = load_scene(scene_path, config, camera)                             # 1
         if settings.workers is None:
@@ -59,14 +60,20 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         settings = settings.with_patches(mesh.hierarchy.n_patches)
         seconds["preprocess"], t = time.perf_counter() - t, time.perf_counter()
         replaced = outputs.earlier()
-        store = Store(outputs.working_store(resume), settings, resume=resume, scene=scene)
+        # a resume with no interrupted run to continue continues a copy of the finished store
+        copied = resume and not output.is_store(outputs.partial)
+        store = Store(outputs.working_store(resume), settings, resume=resume, scene=scene,
+                      shown=outputs.store if copied else None)
         ex = executor or (early.get() if early is not None else executor_for(settings, store))
     except BaseException:
         if early is not None:       # a bad scene, or Ctrl-C while the cluster starts
             early.close()
+        if copied:                  # the copy of the finished store holds nothing new
+            outputs.discard(outputs.partial)
         raise
     ex.use_store(store)
     bar = None
+    began = False
     try:
         store.open()           # a new store, or the checkpoint to resume from
         _announce(ex, settings)
@@ -78,6 +85,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         watch = Watch(store, ex, settings, mesh.hierarchy, str(scene.path),
                       Preview(mesh, camera), then=bar)
         begin = store.begin(mesh.hierarchy, mesh.reflectance, solve.start(light))
+        began = True
         resumed_from = begin.iteration if resume else None    # the solve may update begin
         sol = solve.radiosity(light, settings, ex, begin, on_batch=watch)         # 3
         watch.finish(sol)
@@ -90,7 +98,9 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
     except BaseException as err:
         if bar is not None:             # its last line ends before the error's line
             bar.close()
-        if not (resume or interrupted(err)):    # a stopped run keeps its checkpoint
+        # a stopped run keeps its checkpoint; a copy of the finished store that holds
+        # nothing new yet (a resume refused, or stopped before it began) goes
+        if not (resume or interrupted(err)) or (copied and not began):
             outputs.discard(Path(store.path))
         raise
     finally:

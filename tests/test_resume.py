@@ -217,12 +217,12 @@ def test_a_store_from_before_overshooting_resumes_with_plain_shots(uninterrupted
 
 def _without_row_kind(slot: Path) -> None:
     """Make checkpoint slot ``slot`` (a directory) as format 6 wrote it: no ``row_kind``
-    array and no checksum for one."""
+    array and no checksum for one, nor for its attributes."""
     import shutil
 
     shutil.rmtree(slot / "row_kind")
     doc = json.loads((slot / "zarr.json").read_text())
-    del doc["attributes"]["sha256"]["row_kind"]
+    del doc["attributes"]["sha256"]["row_kind"], doc["attributes"]["state_sha256"]
     (slot / "zarr.json").write_text(json.dumps(doc))
 
 
@@ -257,6 +257,64 @@ def test_more_iterations_continue_a_finished_run_to_the_straight_runs_bits(unint
     report = run(CORNELL, out, SETTINGS, progress=False, resume=True)
     assert report["iterations"] == SETTINGS.max_iterations
     np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
+
+
+def _file_digests(root: Path) -> dict[str, str]:
+    import hashlib
+
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_a_continuation_stopped_half_way_leaves_the_finished_results_as_they_were(
+        uninterrupted, tmp_path, monkeypatch):
+    # a finished 320-shot run continued to 480 and stopped at 400: its store, image and
+    # report are untouched, byte for byte, and still read as a finished result (render,
+    # export); the continuation's own checkpoint is kept, and --resume finishes it to the
+    # straight run's bits
+    import daskrad.run as pipeline
+    from daskrad.distributed import monitor
+    from daskrad.distributed.store import Result
+
+    out = tmp_path / "half.exr"
+    run(CORNELL, out, SETTINGS.replace(max_iterations=320), progress=False)
+    files = [out, out.with_suffix(".png"), out.with_suffix(".json")]
+    before = {p.name: p.read_bytes() for p in files}
+    store_before = _file_digests(out.with_suffix(".zarr"))
+    radiosity = pipeline.solve.radiosity
+
+    def stopped_at_400(light, settings, ex, begin, on_batch=None):
+        def watch(sol):
+            on_batch(sol)
+            if sol.iteration >= 400:
+                raise KeyboardInterrupt
+        return radiosity(light, settings, ex, begin, on_batch=watch)
+
+    monkeypatch.setattr(pipeline.solve, "radiosity", stopped_at_400)
+    monkeypatch.setattr(monitor, "CHECKPOINT_SECONDS", 0.0)    # every 8th batch (384 shots)
+    with pytest.raises(KeyboardInterrupt):
+        run(CORNELL, out, SETTINGS, progress=False, resume=True)
+    assert {p.name: p.read_bytes() for p in files} == before
+    assert _file_digests(out.with_suffix(".zarr")) == store_before
+    assert Result(out.with_suffix(".zarr")).attrs["iteration"] == 320
+    kept = _root_attrs(Outputs(out).partial)
+    assert 320 < kept["iteration"] <= 400 and not kept["complete"]
+    monkeypatch.undo()
+    run(CORNELL, out, SETTINGS, progress=False, resume=True)
+    assert_same_run(uninterrupted, out)
+    assert not Outputs(out).partial.exists()
+
+
+def test_a_refused_continuation_leaves_no_copy_and_names_the_finished_store(uninterrupted,
+                                                                            tmp_path):
+    import shutil
+
+    out = tmp_path / "done.exr"
+    shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
+    with pytest.raises(OptionError, match="other settings") as refused:
+        run(CORNELL, out, SETTINGS.replace(batch=4), progress=False, resume=True)
+    assert refused.value.path == str(out.with_suffix(".zarr"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["done.zarr"]
 
 
 def _slot_store(tmp_path: Path, row_kind):
@@ -316,6 +374,7 @@ def test_a_checkpoint_with_damaged_state_attributes_is_refused_in_one_line(tmp_p
     else:
         doc = json.loads(meta.read_text())
         attrs = doc["attributes"]
+        del attrs["state_sha256"]      # as a slot of before the seal: its types are checked
         if damage == "queued out of range":
             attrs["queued"] = [[99999]]
         elif damage == "queued text":
@@ -326,6 +385,33 @@ def test_a_checkpoint_with_damaged_state_attributes_is_refused_in_one_line(tmp_p
             del attrs["history"]
         meta.write_text(json.dumps(doc))
     with pytest.raises(StoreError, match=r"internal/checkpoint/\d/zarr.json"):
+        Store(path, Settings(), resume=True).open().load_checkpoint(h)
+
+
+@pytest.mark.parametrize("edit", ["iteration", "queued", "history", "row_kind checksum"])
+def test_a_checkpoint_whose_state_attributes_were_edited_is_refused(tmp_path, edit):
+    # edits that keep every type right (an earlier iteration, no batches in flight, a row
+    # kind array no longer listed) would resume to other bits: the slot's own checksum of
+    # its attributes refuses them, naming the file
+    from daskrad.errors import StoreError
+
+    h, path, sol = _slot_store(tmp_path, lambda P: np.zeros(P, np.int8))
+    meta = path / "internal" / "checkpoint" / str(_root_attrs(path)["checkpoint"]) / "zarr.json"
+    restored = Store(path, Settings(), resume=True).open().load_checkpoint(h)
+    assert restored.iteration == sol.iteration and restored.queued == sol.queued
+    doc = json.loads(meta.read_text())
+    attrs = doc["attributes"]
+    if edit == "iteration":
+        attrs["iteration"] = 4
+    elif edit == "queued":
+        attrs["queued"] = []
+    elif edit == "history":
+        attrs["history"] = []
+    else:
+        del attrs["sha256"]["row_kind"]
+    meta.write_text(json.dumps(doc))
+    with pytest.raises(StoreError, match=r"internal/checkpoint/\d/zarr.json does not match its "
+                                         "checksum"):
         Store(path, Settings(), resume=True).open().load_checkpoint(h)
 
 

@@ -220,6 +220,28 @@ def _state_attrs(a: dict, n_patches: int, where: str, given: str) -> list[list[i
     return queued
 
 
+def _state_digest(a: dict) -> str:
+    """sha256 of checkpoint attributes ``a`` (all but ``state_sha256``) as canonical JSON."""
+    doc = json.dumps({k: v for k, v in a.items() if k != "state_sha256"}, sort_keys=True,
+                     separators=(",", ":"))
+    return hashlib.sha256(doc.encode()).hexdigest()
+
+
+def _sealed(a: dict) -> dict:
+    """Checkpoint attributes ``a`` with their own checksum ``state_sha256``: the state a
+    resume continues from (iteration, queued batches, history, which arrays the slot has)
+    lives in these attributes, and an edit of them would resume to other bits, unseen by the
+    arrays' checksums."""
+    a = _jsonable(a)
+    return {**a, "state_sha256": _state_digest(a)}
+
+
+def _intact(a: dict) -> bool:
+    """Whether checkpoint attributes ``a`` match their ``state_sha256`` (a slot written
+    before slots carried one, formats 4–7 of earlier stores, is taken as it is)."""
+    return "state_sha256" not in a or a["state_sha256"] == _state_digest(a)
+
+
 def _where(group, name: str) -> str:
     return f"{group.path}/{name}".lstrip("/")
 
@@ -307,8 +329,10 @@ class Store:
     """
 
     def __init__(self, path: str | Path, settings: Settings | None = None, *,
-                 resume: bool = False, scene=None):
-        self.given = str(path)                       # as the user gave it (checked for --scheduler)
+                 resume: bool = False, scene=None, shown: str | Path | None = None):
+        # as the user gave it (checked for --scheduler), or ``shown`` where the messages should
+        # name another path (a resume's copy of the finished store: the finished one)
+        self.given = str(shown if shown is not None else path)
         self.path = str(Path(path).absolute())       # what workers open
         self.settings = settings or Settings()
         self.resume = resume
@@ -458,7 +482,7 @@ class Store:
         if self._slot is not None and self._written == key:
             slot = self._slot
             s = g[f"internal/checkpoint/{slot}"]
-            s.attrs.put({**state, "sha256": s.attrs["sha256"]})
+            s.attrs.put(_sealed({**state, "sha256": s.attrs["sha256"]}))
         else:
             # never the last checkpoint, nor the last one a resume with a smaller tolerance
             # or more iterations can continue from (``continue``): three slots
@@ -476,7 +500,7 @@ class Store:
                 _put(s, "row_kind", arrays["row_kind"], compress=False,
                      dims=_SLOT_SINCE["row_kind"], description="the row each patch shoots "
                      "through: 1 penumbra-sampled, 0 one point, -1 not chosen yet")
-            s.attrs.put({**state, "sha256": {n: sha256(a) for n, a in arrays.items()}})
+            s.attrs.put(_sealed({**state, "sha256": {n: sha256(a) for n, a in arrays.items()}}))
         # only now is the slot complete: name it (one atomic zarr.json replacement; not
         # attrs.update, which zarr 3 writes key by key: a client killed between two keys left
         # "checkpoint" naming this slot beside the previous iteration and history)
@@ -528,6 +552,14 @@ class Store:
                     raise StoreError(f"internal/checkpoint/{slot}/zarr.json, the last "
                                      f"checkpoint's, cannot be read ({type(err).__name__}); "
                                      "run again without --resume", self.given) from None
+                continue
+            if not _intact(a):
+                err = StoreError(f"internal/checkpoint/{slot}/zarr.json does not match its "
+                                 "checksum (edited or damaged); run again without --resume",
+                                 self.given)
+                if slot == latest:
+                    raise err
+                damaged = damaged or err
                 continue
             if a.get("generation") != h.generation:
                 if slot == latest:
