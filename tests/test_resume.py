@@ -415,6 +415,22 @@ def test_a_checkpoint_whose_state_attributes_were_edited_is_refused(tmp_path, ed
         Store(path, Settings(), resume=True).open().load_checkpoint(h)
 
 
+@pytest.mark.parametrize("group", ["internal", "internal/checkpoint", "internal/context",
+                                   "elements"])
+def test_a_store_with_a_damaged_group_is_refused_before_anything_is_solved(uninterrupted,
+                                                                           tmp_path, group):
+    # an emptied group zarr.json passed the checks and stopped the resume at its first write
+    # below it (a checkpoint, a context) with a JSONDecodeError traceback
+    import shutil
+
+    out = tmp_path / "g.exr"
+    shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
+    (out.with_suffix(".zarr") / group / "zarr.json").write_text("")
+    with pytest.raises(OptionError, match=f": {group}/zarr.json cannot be read"):
+        run(CORNELL, out, SETTINGS.replace(max_iterations=560), progress=False, resume=True)
+    assert not Outputs(out).partial.exists()
+
+
 def test_a_damaged_slot_to_continue_from_is_named_not_the_stopping_criteria(uninterrupted,
                                                                              tmp_path):
     # more iterations continue from the "continue" slot; when its bytes are damaged the

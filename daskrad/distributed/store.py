@@ -242,6 +242,30 @@ def _intact(a: dict) -> bool:
     return "state_sha256" not in a or a["state_sha256"] == _state_digest(a)
 
 
+def _check_groups(root: Path, given: str) -> None:
+    """:class:`StoreError` naming the first group of the store at ``root`` whose ``zarr.json``
+    is not a JSON object: the resume writes below every group (checkpoints, contexts, the
+    public arrays), and zarr reads a group's metadata before it writes a child, so a damaged
+    one stopped the run at its first checkpoint with a traceback. The checkpoint slots are
+    checked when read (a torn older slot is skipped), and an array's metadata is written
+    anew with its array."""
+    for meta in sorted(root.rglob("zarr.json")):
+        here = meta.parent
+        rel = here.relative_to(root)
+        if rel.parts[:2] == ("internal", "checkpoint") and len(rel.parts) > 2:
+            continue
+        if not any((child / "zarr.json").is_file() for child in here.iterdir()
+                   if child.is_dir()):
+            continue                    # an array (its chunks are not nodes)
+        try:
+            ok = isinstance(json.loads(meta.read_text()), dict)
+        except (OSError, ValueError):
+            ok = False
+        if not ok:
+            raise StoreError(f"{(rel / 'zarr.json').as_posix()} cannot be read (damaged); "
+                             "run again without --resume", given)
+
+
 def _where(group, name: str) -> str:
     return f"{group.path}/{name}".lstrip("/")
 
@@ -407,6 +431,7 @@ class Store:
             raise StoreError(f"cannot open the solution store: {err}", self.given) from err
         attrs = self.group.attrs
         _check_format(attrs.get("format"), self.given)
+        _check_groups(Path(self.path), self.given)
         old = {**SINCE, **attrs.get("settings", {})}
         new = _jsonable(self.settings.as_dict())
         changed = [k for k in SOLUTION_SETTINGS if old.get(k) != new.get(k)]
