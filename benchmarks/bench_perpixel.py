@@ -26,6 +26,13 @@ caps the solve) at ``--size`` pixels, two comparisons, alternated ``--repeat`` t
 - **Lambert after the rays** (:data:`daskrad.render.LAMBERT_AFTER_RAYS`): the same tiles (probes
   and all) when an area light's ``F`` is computed only after one of its shadow rays came
   through, against computing it first. Both give the same image (checked bit for bit).
+- **polygon occluders** (:data:`daskrad.render.POLYGON_OCCLUDERS`): the same tiles (all of the
+  above) when the shadow rays walk the grid over the scene's polygons, against the grid over
+  the elements. The same surfaces, so the same image but along an edge the elements add
+  inside a polygon: pixels changed and the largest change relative to the pixel.
+- **shadow cache** (:data:`daskrad.render.SHADOW_CACHE`): the same tiles (all of the above)
+  when each area light's shadow rays first try the triangle that blocked its last ray,
+  against walking the grid for every ray. Both give the same image (checked bit for bit).
 
 Seconds are wall time in this process, one thread. ``python -m benchmarks.bench_perpixel
 [--scene PATH --config TOML] [--size W H] [--shots N] [--repeat N]``; writes
@@ -163,6 +170,8 @@ def measure(path: Path, config: Path | None, size: tuple[int, int], shots: int,
         "change_largest_relative": float((diff / np.maximum(a.max(axis=2), 1e-300)).max()),
         **probes,
         **_lambert(viewed, repeat),
+        **_arms(viewed, "POLYGON_OCCLUDERS", "occluders", repeat),
+        **_arms(viewed, "SHADOW_CACHE", "cache", repeat),
     }
 
 
@@ -233,6 +242,23 @@ def _lambert(ctx: render.RenderContext, repeat: int) -> dict:
             "lambert_after_same_bits": bool(np.array_equal(images[True], images[False]))}
 
 
+def _arms(ctx: render.RenderContext, flag: str, name: str, repeat: int) -> dict:
+    """The tiles of ``ctx`` with :mod:`daskrad.render`'s ``flag`` off and on, alternated
+    ``repeat`` times: medians, their ratio, and how the image changed."""
+    if ctx.lights is None:
+        return {}
+    seconds, images = _alternated(ctx, flag, repeat)
+    a, b = images[False], images[True]
+    change = np.abs(a - b).max(axis=2)
+    return {f"tiles_{name}_off_s": float(np.median(seconds[False])),
+            f"tiles_{name}_on_s": float(np.median(seconds[True])),
+            f"{name}_speedup": float(np.median(seconds[False]) / np.median(seconds[True])),
+            f"{name}_same_bits": bool(np.array_equal(a, b)),
+            f"{name}_pixels_changed": int((change > 0).sum()),
+            f"{name}_change_largest_relative": float(
+                (change / np.maximum(a.max(axis=2), 1e-300)).max())}
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_perpixel")
     parser.add_argument("--scene", type=Path, action="append", default=[])
@@ -280,6 +306,16 @@ def main(argv: list[str] | None = None) -> dict:
             print(f"{r['scene']:<18}{r['tiles_lambert_first_s']:>8.2f}"
                   f"{r['tiles_lambert_after_s']:>8.2f}{r['lambert_after_speedup']:>6.2f}  "
                   f"{r['lambert_after_same_bits']}")
+    print(f"\n{'shadow rays':<18}{'elements':>9}{'polygons':>9}{'x':>6}{'changed':>9}"
+          f"{'largest':>9}   {'no cache':>9}{'cache':>7}{'x':>6}  same bits")
+    for r in rows:
+        if "occluders_speedup" in r:
+            print(f"{r['scene']:<18}{r['tiles_occluders_off_s']:>9.2f}"
+                  f"{r['tiles_occluders_on_s']:>9.2f}{r['occluders_speedup']:>6.2f}"
+                  f"{r['occluders_pixels_changed']:>9,}"
+                  f"{r['occluders_change_largest_relative']:>9.1e}   "
+                  f"{r['tiles_cache_off_s']:>9.2f}{r['tiles_cache_on_s']:>7.2f}"
+                  f"{r['cache_speedup']:>6.2f}  {r['cache_same_bits']}")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "perpixel.json").write_text(json.dumps(rows, indent=2) + "\n")
     return {"perpixel": rows}

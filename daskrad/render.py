@@ -31,7 +31,7 @@ from daskrad.kernels.shade import direct_at_hits
 from daskrad.kernels.unshadowed import unshadowed_elements
 from daskrad.mesh import default_sizes, vertex_average
 from daskrad.mesh.refine import TVertices, resolve_tvertices
-from daskrad.scene.corners import repeat_third
+from daskrad.scene.corners import repeat_third, split_quads
 from daskrad.scene.types import Camera, Scene
 from daskrad.settings import Settings
 from daskrad.solve import Solution, ambient
@@ -148,6 +148,10 @@ class RenderContext:
         where one patch is proved to hide it from the whole element (nor then;
         :func:`hidden_lights`), else ``LIGHT_TRACE`` (:func:`with_light_modes`); ``None``:
         every hit traces every light.
+    occluders : Grid, optional
+        The voxel grid over the scene's polygons (:func:`occluder_grid`), which the shadow
+        rays of the per-pixel pass walk instead of ``grid`` (:data:`POLYGON_OCCLUDERS`);
+        ``None`` (a store written before it): ``grid``.
     """
 
     grid: Grid
@@ -182,6 +186,7 @@ class RenderContext:
     # the junction gather still to apply for this context's camera (:func:`for_view`)
     junctions: Junctions | None = None
     elem_light_mode: np.ndarray | None = None
+    occluders: Grid | None = None
 
     @property
     def extras(self) -> bool:
@@ -517,7 +522,8 @@ def _radiance(ctx: RenderContext, o: np.ndarray, d: np.ndarray, seeds: np.ndarra
             e = elem[sel]
             p = o[a] + t[a, None] * d[a]
             H, _ = direct_at_hits(
-                ctx.grid, np.ascontiguousarray(p), np.ascontiguousarray(ctx.elem_normal[e]),
+                shadow_grid(ctx), np.ascontiguousarray(p),
+                np.ascontiguousarray(ctx.elem_normal[e]),
                 np.ascontiguousarray(-d[a]), np.ascontiguousarray(seeds[a]),
                 np.zeros((len(a), 3)), np.zeros(len(a)), float(hard.offset), *hard.light_args,
                 int(hard.samples), np.zeros((len(a), len(hard.emitter_corners)), np.int8))
@@ -596,19 +602,38 @@ def _direct_at(ctx: RenderContext, lights: Lights, p: np.ndarray, elem: np.ndarr
             np.ascontiguousarray(views[sel]), np.ascontiguousarray(seeds[sel]),
             np.ascontiguousarray(ks[sel]), np.ascontiguousarray(ctx.elem_shininess[e]),
             float(lights.offset), *lights.light_args, int(lights.samples),
-            np.ascontiguousarray(modes), SHADOW_PROBES, not LAMBERT_AFTER_RAYS)
+            np.ascontiguousarray(modes), SHADOW_PROBES, not LAMBERT_AFTER_RAYS, SHADOW_CACHE)
 
+    grid = shadow_grid(ctx)
     if ctx.elem_unshadowed is None:
-        return run(ctx.grid, slice(None))
+        return run(grid, slice(None))
     free = ctx.elem_unshadowed[elem]
     if not free.any():
-        return run(ctx.grid, slice(None))
+        return run(grid, slice(None))
     H = np.zeros((len(p), 3))
     S = np.zeros((len(p), 3))
     H[free], S[free] = run(ctx.open_grid, free)
     if not free.all():
-        H[~free], S[~free] = run(ctx.grid, ~free)
+        H[~free], S[~free] = run(grid, ~free)
     return H, S
+
+
+def shadow_grid(ctx: RenderContext) -> Grid:
+    """The grid the per-pixel pass's shadow rays walk (:data:`POLYGON_OCCLUDERS`)."""
+    return ctx.occluders if POLYGON_OCCLUDERS and ctx.occluders is not None else ctx.grid
+
+
+#: The per-pixel pass's shadow rays walk the grid over the scene's polygons
+#: (:func:`occluder_grid`) instead of the grid over the elements (``bench_perpixel``; the
+#: README has its figures; ``False`` is the benchmark's reference arm).
+POLYGON_OCCLUDERS = True
+
+#: Each area light's shadow rays in a tile try the triangle that blocked the light's last ray
+#: first (:func:`daskrad.kernels.shade.direct_at_hits`' ``cache``): the same bits. RenderPark's
+#: office, 7 of its 35 tiles at 400 × 300: 74 % of the probe rays are blocked, and the last
+#: blocker blocks again for 14 % of them through the element grid, 41 % through the polygons'
+#: (``bench_perpixel`` measures the time).
+SHADOW_CACHE = True
 
 
 #: Seed offset between mirror bounces: above any pixel sample id of a 2¹⁶ × 2¹⁶ image at
@@ -714,7 +739,8 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
     ctx = RenderContext(grid=mesh.grid, tri_verts=mesh.tri_verts, tri_element=mesh.tri_element,
                         elem_normal=h.elem_normal, vertex_radiance=indirect + direct_v,
                         camera=cam, spp=settings.spp, edge_spp=settings.edge_spp,
-                        edge_step=EDGE_STEP * white_level(h.elem_verts, indirect + direct_v))
+                        edge_step=EDGE_STEP * white_level(h.elem_verts, indirect + direct_v),
+                        occluders=occluder_grid(scene))
     mats, mat = scene.materials, h.elem_material
     ctx = perpixel_context(
         ctx, h.elem_verts, vertex_indirect=indirect, vertex_direct=direct_v,
@@ -729,6 +755,19 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
         tvertices=light.tvertices,
         element_size=settings.element_size or default_sizes(scene)[1])
     return with_light_modes(with_unshadowed(ctx, h), h, light.classes, light.tvertices)
+
+
+def occluder_grid(scene: Scene) -> Grid:
+    """The voxel grid over the scene's polygons as triangles (quads split along 0–2, as
+    loaded): what blocks a shadow ray. The elements subdivide the polygons in their planes
+    (patches, elements, adaptive subdivision, cuts at contacts), so both sets of triangles
+    cover the same surfaces, and a shadow ray, which asks only whether something lies
+    between, gets the same answer from either but along an edge the elements add inside a
+    polygon (the edge tolerance, ``grid.eps``, is absolute). The polygons are fewer and larger:
+    RenderPark's office, 53,364 triangles against 224,515, a cell holding a polygon instead
+    of its elements."""
+    tri, _ = split_quads(scene.polygons)
+    return build_grid(np.ascontiguousarray(scene.vertices[tri], dtype=np.float64))
 
 
 def vertex_split(light: DirectLight, sol: Solution) -> tuple[np.ndarray, np.ndarray]:

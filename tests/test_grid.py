@@ -443,16 +443,20 @@ def _fan_walk(shift=0.0, tmin=0.0):
     from numba import njit
 
     @njit
-    def walk(grid, origins, normals, dirs, tmax):
+    def walk(grid, origins, normals, dirs, tmax, primed):
         """Every ray of every fan, with and without the fan: closest (t, tri, u, v) and any
-        hit before ``tmax``; and how many triangles each fan found wholly below it."""
+        hit before ``tmax``, and the any hit again through the fan's blocker cache (slots
+        0 and 1 taken in turn, primed with the triangles ``primed``, and -1: no cache); how
+        many triangles each fan found wholly below it."""
         n, k = dirs.shape[0], dirs.shape[1]
         plain = np.empty((n, k, 4))
         fanned = np.empty((n, k, 4))
         any_plain = np.empty((n, k), np.bool_)
         any_fanned = np.empty((n, k), np.bool_)
+        any_cached = np.empty((n, k), np.bool_)
         below = np.zeros(n, np.int64)
-        fan = G.new_fan(grid)
+        fan = G.new_fan(grid, 2)
+        fan.blocker[:] = primed
         for i in range(n):
             G.aim_fan(fan, grid, origins[i], normals[i], 1e-7)
             o = origins[i] + shift * normals[i]
@@ -464,8 +468,10 @@ def _fan_walk(shift=0.0, tmin=0.0):
                     t, tri, u, v
                 any_plain[i, r] = G.any_hit_one(grid, o, dirs[i, r], tmin, tmax)
                 any_fanned[i, r] = G.any_hit_fan(grid, fan, o, dirs[i, r], tmin, tmax)
+                any_cached[i, r] = G.any_hit_cached(grid, fan, o, dirs[i, r], tmin, tmax,
+                                                    r % 3 - 1)
             below[i] = (fan.stamp == 2 * fan.key[0] + 1).sum()
-        return plain, fanned, any_plain, any_fanned, below
+        return plain, fanned, any_plain, any_fanned, below, any_cached
 
     return walk
 
@@ -511,20 +517,28 @@ def test_fan_gives_the_plain_walks_bits_and_skips_the_surface_below(rng, offset)
     tang = d - np.einsum("nkj,nj->nk", d, nrm)[..., None] * nrm[:, None]
     graze = 10.0 ** rng.uniform(-9, -3, (n_fan, k // 4, 1))
     d[:, : k // 4] = tang[:, : k // 4] + graze * nrm[:, None]
-    plain, fanned, any_plain, any_fanned, below = _fan_walk()(grid, o, nrm, d, 2.0)
+    # the blocker cache starts from a field triangle under the first fan (culled) and a
+    # soup triangle (most often missed); then each slot holds its last ray's blocker
+    primed = np.array([int(tri[0]), len(field)], np.int64)
+    plain, fanned, any_plain, any_fanned, below, any_cached = _fan_walk()(grid, o, nrm, d, 2.0,
+                                                                          primed)
     np.testing.assert_array_equal(fanned, plain)          # t, tri, u, v: the same bits
     np.testing.assert_array_equal(any_fanned, any_plain)
+    np.testing.assert_array_equal(any_cached, any_plain)
     # rays the cull does not hold for walk plainly: from another origin than the fan's (a
     # hair below it), going down, or with tmin < 0
-    shifted = _fan_walk(shift=-2e-7 * diag)(grid, o, nrm, d, 2.0)
+    shifted = _fan_walk(shift=-2e-7 * diag)(grid, o, nrm, d, 2.0, primed)
     np.testing.assert_array_equal(shifted[1], shifted[0])
     np.testing.assert_array_equal(shifted[3], shifted[2])
-    down = _fan_walk()(grid, o, nrm, -d, 2.0)
+    np.testing.assert_array_equal(shifted[5], shifted[2])
+    down = _fan_walk()(grid, o, nrm, -d, 2.0, primed)
     np.testing.assert_array_equal(down[1], down[0])
+    np.testing.assert_array_equal(down[5], down[2])
     assert (down[0][..., 1] >= 0).any()
-    behind = _fan_walk(tmin=-1.0)(grid, o, nrm, d, 2.0)
+    behind = _fan_walk(tmin=-1.0)(grid, o, nrm, d, 2.0, primed)
     np.testing.assert_array_equal(behind[1], behind[0])
     np.testing.assert_array_equal(behind[3], behind[2])
+    np.testing.assert_array_equal(behind[5], behind[2])
     hit = plain[..., 1] >= 0
     assert 0.2 < hit.mean() < 1.0 and 0.0 < any_plain.mean() < 1.0
     # the soup's triangles met were hit somewhere, so the cull had something to get wrong

@@ -275,6 +275,50 @@ def test_the_per_pixel_pass_has_the_vertex_pass_bits_with_lambert_after_the_rays
     assert lit.sum() > 100 and (~lit).sum() > 10
 
 
+@pytest.mark.parametrize("probe", [False, True])
+def test_the_shadow_cache_keeps_the_bits(probe):
+    # each area light's rays first try the triangle that blocked its last ray: under the
+    # blade and the plate half the hits are hidden by the plate, and the answer of every hit
+    # is that of walking the grid for every ray
+    from daskrad.kernels.direct import LIGHT_TRACE
+    from daskrad.kernels.shade import direct_at_hits
+
+    plate = np.array([[[0.5, 1.5, -3], [3, 1.5, -3], [3, 1.5, 3]],
+                      [[0.5, 1.5, -3], [3, 1.5, 3], [0.5, 1.5, 3]]])
+    run, p = _blade_hits(n=600, blocker=plate)
+    n = len(p)
+    up = np.tile([0.0, 1.0, 0.0], (n, 1))
+    H = {cache: direct_at_hits(run.grid, p, up, up, np.arange(n, dtype=np.int64),
+                               np.zeros((n, 3)), np.zeros(n), 1e-7, *run.lights, 4,
+                               np.full((n, 1), LIGHT_TRACE, np.int8), probe, False, cache)[0]
+         for cache in (False, True)}
+    assert np.array_equal(H[True], H[False])
+    from daskrad.kernels.direct import LIGHT_VISIBLE
+
+    shadowed = H[True][:, 0] < run(LIGHT_VISIBLE)[:, 0]     # some ray blocked
+    assert 0.3 < shadowed.mean() < 0.9
+
+
+def test_shadow_rays_through_the_polygons_give_the_elements_image(monkeypatch):
+    # the per-pixel pass's shadow rays walk the grid over the scene's 36 polygon triangles
+    # instead of its thousands of element triangles: the same surfaces, the same image
+    from daskrad.run import solve_scene
+    from daskrad.scene import load_scene
+    from daskrad.settings import Settings
+    from tests.helpers import CORNELL
+
+    scene = load_scene(CORNELL)
+    settings = Settings(max_iterations=64, width=40, height=40)
+    _, _, sol, light = solve_scene(scene, settings)
+    ctx = render.for_view(render.context(scene, light, sol, settings,
+                                         render.camera(scene, settings)))
+    assert len(ctx.occluders.triangles) < len(ctx.grid.triangles) / 100
+    polygons, count = _render(ctx)
+    monkeypatch.setattr(render, "POLYGON_OCCLUDERS", False)
+    elements, _ = _render(ctx)
+    assert count > 1000 and np.array_equal(polygons, elements)
+
+
 def lambert_polygon_at(q):
     from daskrad.kernels.lambert import lambert_polygon
 

@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from daskrad.kernels._jit import jit
-from daskrad.kernels.grid import aim_fan, any_hit_fan, new_fan
+from daskrad.kernels.grid import aim_fan, any_hit_cached, any_hit_fan, new_fan
 from daskrad.kernels.lambert import lambert_polygon
 
 _INV_2_53 = 1.0 / 9007199254740992.0
@@ -111,14 +111,16 @@ def _kernel(p, n, en, q):
 
 
 @jit
-def _unblocked(grid, fan, o, q, off, d):
+def _unblocked(grid, fan, o, q, off, d, slot=-1):
     """Whether the shadow ray from ``o`` to ``q`` is free (``d``: scratch for its direction);
-    hits within ``off`` of either end do not count."""
+    hits within ``off`` of either end do not count. ``slot``: the fan's blocker cache slot
+    (:func:`daskrad.kernels.grid.any_hit_cached`: the light's index; -1 none)."""
     d[0] = q[0] - o[0]
     d[1] = q[1] - o[1]
     d[2] = q[2] - o[2]
     dl = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-    return not (dl > 2.0 * off and any_hit_fan(grid, fan, o, d, off / dl, 1.0 - off / dl))
+    return not (dl > 2.0 * off
+                and any_hit_cached(grid, fan, o, d, off / dl, 1.0 - off / dl, slot))
 
 
 @jit
@@ -151,7 +153,9 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
     grid : Grid
     fan : Fan
         Scratch of :func:`daskrad.kernels.grid.new_fan` for ``grid``: the shadow rays leave
-        from one origin above the surface, so its own triangles are tested once, not per ray.
+        from one origin above the surface, so its own triangles are tested once, not per ray;
+        with a blocker cache slot per area light (``new_fan(grid, M)``), a ray first tries
+        the triangle that blocked the last ray to its light (the same answer, sooner).
     p, n : (3,) float64
         The point and its unit normal (the lit side).
     pa : (3,) float64
@@ -290,7 +294,7 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
                 q = _stratum_point(em_corners[m], cnt, seed, m, ss, samples, k)
                 seen[c] = -1
                 if _kernel(p, n, en, q) > 0.0:
-                    seen[c] = 1 if _unblocked(grid, fan, o, q, off, d) else 0
+                    seen[c] = 1 if _unblocked(grid, fan, o, q, off, d, m) else 0
                     free += seen[c]
                     blocked += 1 - seen[c]
             if free == 4:
@@ -311,7 +315,7 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
                 else:
                     c = _which_corner(k, samples) if probing else -1
                     visible = (seen[c] == 1 if c >= 0
-                               else _unblocked(grid, fan, o, q, off, d))
+                               else _unblocked(grid, fan, o, q, off, d, m))
                 if not visible:
                     continue
             wvis += w
@@ -371,7 +375,7 @@ def irradiance_points(grid, points, area_points, normals, seeds, off, pl_pos, pl
     ks = np.zeros(3)
     view = np.zeros(3)
     modes = np.full(n_em, LIGHT_TRACE, np.int8)
-    fan = new_fan(grid)
+    fan = new_fan(grid, n_em)      # a blocker cache slot per area light
     for i in range(npts):
         irradiance_one(grid, fan, points[i], area_points[i], normals[i], off, seeds[i], pl_pos,
                        pl_int, dl_dir, dl_irr, em_corners, em_count, em_normal, em_radiance,

@@ -349,6 +349,11 @@ class Fan(NamedTuple):
         The current fan's origin and plane normal.
     margin : (1,) float64
         How far below the plane a triangle's highest corner must lie (:func:`aim_fan`).
+    blocker : (S,) int64
+        Per cache slot (an area light of a shadow-ray kernel), the triangle that blocked the
+        last shadow ray asked through it, or -1 (:func:`any_hit_cached`). It outlives
+        :func:`aim_fan`: the next point (the next sample of a pixel, the next pixel of a
+        tile) is most often hidden from the light by the same triangle.
     """
 
     stamp: np.ndarray
@@ -356,19 +361,21 @@ class Fan(NamedTuple):
     origin: np.ndarray
     normal: np.ndarray
     margin: np.ndarray
+    blocker: np.ndarray
 
 
 @jit
-def new_fan(grid):
-    """A :class:`Fan` for ``grid``'s triangles, aimed nowhere yet. It is scratch: one per
-    thread, aimed (:func:`aim_fan`) at each origin in turn."""
+def new_fan(grid, slots=0):
+    """A :class:`Fan` for ``grid``'s triangles, aimed nowhere yet, with ``slots`` blocker
+    cache slots. It is scratch: one per thread, aimed (:func:`aim_fan`) at each origin in
+    turn."""
     return Fan(np.full(grid.triangles.shape[0], -1, np.int32), np.full(1, -1, np.int32),
-               np.zeros(3), np.zeros(3), np.zeros(1))
+               np.zeros(3), np.zeros(3), np.zeros(1), np.full(slots, -1, np.int64))
 
 
 #: A fan that culls nothing (``key`` -1): the plain walk of :func:`closest_hit_one`.
 NO_FAN = Fan(np.full(0, -1, np.int32), np.full(1, -1, np.int32), np.zeros(3), np.zeros(3),
-             np.zeros(1))
+             np.zeros(1), np.full(0, -1, np.int64))
 
 
 @jit
@@ -451,6 +458,15 @@ def _next_t(o, d, i, plane_off, origin, cell):
 
 
 @jit
+def _culls(fan, ox, oy, oz, dx, dy, dz, tmin):
+    """Whether ``fan``'s cull holds for the ray: from its origin, rising above its plane,
+    ``t >= 0``."""
+    return (fan.key[0] >= 0 and tmin >= 0.0 and ox == fan.origin[0] and oy == fan.origin[1]
+            and oz == fan.origin[2]
+            and (dx * fan.normal[0] + dy * fan.normal[1] + dz * fan.normal[2]) > 0.0)
+
+
+@jit
 def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode, fan):
     """Walk the grid: closest hit ``(t, tri, u, v)``, or the first hit found if ``any_mode``.
 
@@ -476,11 +492,8 @@ def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode, fan):
     k, sk, ok = _start(oz, dz, t0, origin[2], cell[2], nz)
     cell_start, cell_items, tris, eps = grid.cell_start, grid.cell_items, grid.triangles, grid.eps
     best_t, best_tri, best_u, best_v = tmax, -1, 0.0, 0.0
-    # the fan's cull holds for a ray from its origin that rises above its plane, t >= 0
     key = fan.key[0]
-    cull = (key >= 0 and tmin >= 0.0 and ox == fan.origin[0] and oy == fan.origin[1]
-            and oz == fan.origin[2]
-            and (dx * fan.normal[0] + dy * fan.normal[1] + dz * fan.normal[2]) > 0.0)
+    cull = _culls(fan, ox, oy, oz, dx, dy, dz, tmin)
     tx = _next_t(ox, dx, i, oi, origin[0], cell[0])
     ty = _next_t(oy, dy, j, oj, origin[1], cell[1])
     tz = _next_t(oz, dz, k, ok, origin[2], cell[2])
@@ -547,6 +560,29 @@ def closest_hit_fan(grid, fan, o, d, tmin, tmax):
 def any_hit_fan(grid, fan, o, d, tmin, tmax):
     """:func:`any_hit_one` for a ray of ``fan`` (:func:`aim_fan` at ``o``)."""
     return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, True, fan)[1] >= 0
+
+
+@jit
+def any_hit_cached(grid, fan, o, d, tmin, tmax, slot):
+    """:func:`any_hit_fan`, trying first the triangle that blocked the last ray of cache
+    ``slot`` (``fan.blocker``; a slot out of its range caches nothing). The same answer: a
+    triangle the ray meets within ``(tmin, tmax)`` (and the fan does not cull) lies in a cell
+    the walk visits and holds it (the grid's registration margin), so the walk would have
+    answered blocked too; only its cost changes (Haines & Greenberg's shadow cache)."""
+    cached = 0 <= slot < fan.blocker.shape[0]
+    if cached:
+        tri = fan.blocker[slot]
+        if tri >= 0 and not (_culls(fan, o[0], o[1], o[2], d[0], d[1], d[2], tmin)
+                             and _below(fan, grid.triangles, tri, fan.key[0])):
+            if _intersect(grid.triangles, tri, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax,
+                          grid.eps)[0]:
+                return True
+    tri = _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, True, fan)[1]
+    if tri < 0:
+        return False
+    if cached:
+        fan.blocker[slot] = tri
+    return True
 
 
 @jit

@@ -28,7 +28,7 @@ from daskrad.kernels.grid import new_fan
 @jit
 def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_int, dl_dir,
                    dl_irr, em_corners, em_count, em_normal, em_radiance, em_area, samples,
-                   modes, probe=False, lambert_first=False):
+                   modes, probe=False, lambert_first=False, cache=True):
     """Direct irradiance and Phong radiance at ray hits.
 
     Parameters
@@ -55,6 +55,10 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
     lambert_first : bool
         Lambert's ``F`` of each area light before its rays (``irradiance_one``'s; ``False``,
         after them and only for a light one of them reaches: the same bits, faster).
+    cache : bool
+        Each area light's shadow rays try the triangle that blocked its last ray first
+        (:func:`daskrad.kernels.grid.any_hit_cached`; the hits of a tile come pixel by pixel,
+        so the next is most often hidden by the same triangle): the same bits, faster.
 
     Returns ``H (n, 3)``, the irradiance (W per unit area), and ``S (n, 3)``, the Phong
     radiance ``Σ_lights Ks (Ns+2)/(2π) max(0, r·v)^Ns dH``.
@@ -62,7 +66,7 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
     n = points.shape[0]
     H = np.zeros((n, 3))
     S = np.zeros((n, 3))
-    fan = new_fan(grid)
+    fan = new_fan(grid, em_corners.shape[0] if cache else 0)   # a cache slot per area light
     classes = np.zeros(em_corners.shape[0], np.int8)
     for i in range(n):
         irradiance_one(grid, fan, points[i], points[i], normals[i], off, seeds[i], pl_pos, pl_int,
