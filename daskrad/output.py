@@ -14,6 +14,7 @@ import json
 import os
 import shutil
 import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -99,7 +100,8 @@ class Outputs:
 
     @property
     def partial(self) -> Path:
-        """Where a new run's store lives until it has finished."""
+        """Where a run's store lives until it has finished (a new run's, or a resumed run's
+        copy of the finished one)."""
         return self.exr.with_name(f".{self.exr.stem}.zarr.partial")
 
     def earlier(self) -> list[Path]:
@@ -178,15 +180,17 @@ class Outputs:
 
 def clone_store(src: Path, dst: Path) -> None:
     """Copy the store ``src`` to the new path ``dst``, whole or not at all: every file is a
-    hard link (a store of 100k elements clones in milliseconds), a copy where the file system
-    has none. Links are safe because the store is never written in place: zarr replaces each
-    chunk and ``zarr.json`` by writing a new file and renaming it over the old
-    (docs/stack.md), which leaves the other name's file as it was. The clone is built under a
-    temporary name and renamed to ``dst`` last, so a clone stopped half-way is never taken
-    for a store."""
-    tmp = dst.with_name(f"{dst.name}.{os.getpid()}.tmp")
+    hard link (the converted office's store, 113,886 elements and 113 MB in 108 files, clones
+    in 14 ms), a copy where the file system has none. Links are safe because the store is
+    never written in place: zarr replaces each chunk and ``zarr.json`` by writing a new file
+    and renaming it over the old (docs/stack.md), which leaves the other name's file as it
+    was. The clone is built under a
+    temporary name of its own (``tempfile.mkdtemp``: made here, so removed here on failure)
+    and renamed to ``dst`` last, so a clone stopped half-way is never taken for a store."""
+    tmp = Path(tempfile.mkdtemp(prefix=f"{dst.name}.", suffix=".tmp", dir=dst.parent))
     try:
-        shutil.copytree(src, tmp, symlinks=True, copy_function=_link_or_copy)
+        shutil.copytree(src, tmp, symlinks=True, copy_function=_link_or_copy,
+                        dirs_exist_ok=True)
         os.replace(tmp, dst)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)     # made here, and only part of a clone

@@ -29,7 +29,7 @@ from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_TRACE, LIGHT_VISIBLE
 from daskrad.kernels.grid import DEFAULT_DENSITY, Grid, build_grid, closest_hit
 from daskrad.kernels.shade import direct_at_hits
 from daskrad.kernels.unshadowed import unshadowed_elements
-from daskrad.mesh import default_sizes, vertex_average
+from daskrad.mesh import default_sizes, one_sided, vertex_average
 from daskrad.mesh.refine import TVertices, resolve_tvertices
 from daskrad.scene.corners import repeat_third, split_quads
 from daskrad.scene.types import Camera, Scene
@@ -759,9 +759,12 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
 
 def occluder_grid(scene: Scene, cells_for: int) -> Grid:
     """The voxel grid over the scene's polygons as triangles (quads split along 0–2, as
-    loaded): what blocks a shadow ray. The elements subdivide the polygons in their planes
-    (patches, elements, adaptive subdivision, cuts at contacts), so both sets of triangles
-    cover the same surfaces, and a shadow ray, which asks only whether something lies
+    loaded), with the back of every two-sided polygon as the mesh makes it
+    (:func:`daskrad.mesh.one_sided`, ``TWO_SIDED_GAP`` behind the front): what blocks a
+    shadow ray. The elements subdivide these polygons in their planes (patches, elements,
+    adaptive subdivision, cuts at contacts), so both sets of triangles cover the same surfaces
+    (up to the rounding of a back's corners, moved along the normal of the whole polygon
+    rather than of a cut piece), and a shadow ray, which asks only whether something lies
     between, gets the same answer from either but along an edge the elements add inside a
     polygon (the edge tolerance, ``grid.eps``, is absolute). The polygons are fewer and larger
     (RenderPark's office: 53,364 triangles against 224,515), so a cell holds a polygon
@@ -774,6 +777,7 @@ def occluder_grid(scene: Scene, cells_for: int) -> Grid:
     cells) 12.32 / 7.77 s, of the elements' cells 11.73 / 6.16 s, the same image in each:
     coarse cells hold pieces of many polygons, and a large polygon is tested again in every
     cell a ray crosses."""
+    scene = one_sided(scene)
     tri, _ = split_quads(scene.polygons)
     return build_grid(np.ascontiguousarray(scene.vertices[tri], dtype=np.float64),
                       density=DEFAULT_DENSITY * max(cells_for, 1) / max(len(tri), 1))

@@ -319,6 +319,33 @@ def test_shadow_rays_through_the_polygons_give_the_elements_image(monkeypatch):
     assert count > 1000 and np.array_equal(polygons, elements)
 
 
+@pytest.mark.parametrize("two_sided", [False, True])
+def test_the_polygons_grid_covers_every_element_the_backs_of_two_sided_faces_too(two_sided):
+    # a floor and a plate over it (two-sided or not): a ray from a hair above each element
+    # triangle's centroid, back along its normal, meets a triangle of the occluder grid within
+    # twice that hair, so the shadow rays meet every surface the elements have (a two-sided
+    # plate's back elements lie TWO_SIDED_GAP of the diagonal behind its front)
+    from daskrad.kernels.grid import closest_hit
+    from daskrad.preprocess import preprocess
+    from daskrad.settings import Settings
+
+    v = np.array([[-2, 0, -2], [-2, 0, 2], [2, 0, 2], [2, 0, -2],
+                  [-1, 1, -1], [-1, 1.2, 1], [1, 1.2, 1], [1, 1, -1]], float)
+    scene = scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7]]), [0, 1],
+                              diffuse=[[0.5] * 3] * 2, emission=[[0.0] * 3] * 2,
+                              point_lights=(LIGHT[None], [[INTENSITY] * 3]),
+                              two_sided=[False, two_sided])       # per material
+    mesh = preprocess(scene, Settings(patch_size=1.0, element_size=0.5))
+    occluders = render.occluder_grid(scene, len(mesh.triangles))
+    t = mesh.triangles
+    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    hair = 1e-7 * scene.diagonal
+    hit_t, tri, _, _ = closest_hit(occluders, t.mean(axis=1) + hair * n, -n, 0.0, 2 * hair)
+    assert (tri >= 0).all()
+    assert len(mesh.triangles) > 100 and len(occluders.triangles) == (6 if two_sided else 4)
+
+
 def lambert_polygon_at(q):
     from daskrad.kernels.lambert import lambert_polygon
 

@@ -431,6 +431,25 @@ def test_a_store_with_a_damaged_group_is_refused_before_anything_is_solved(unint
     assert not Outputs(out).partial.exists()
 
 
+def test_a_garbled_free_slot_is_skipped_and_written_anew(uninterrupted, tmp_path):
+    # a slot that is neither the last checkpoint nor the one to continue from, its zarr.json
+    # garbled: the resume skips it, and its first checkpoint makes the slot anew (zarr's
+    # require_group read the garbled metadata and stopped the run with a traceback)
+    import shutil
+
+    out = tmp_path / "free.exr"
+    shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
+    attrs = _root_attrs(out.with_suffix(".zarr"))
+    free = min({0, 1, 2} - {attrs["checkpoint"], attrs["continue"]})
+    slot = out.with_suffix(".zarr") / "internal" / "checkpoint" / str(free)
+    slot.mkdir(parents=True, exist_ok=True)
+    (slot / "zarr.json").write_text("{garbled")
+    more = SETTINGS.replace(max_iterations=SETTINGS.max_iterations + 80)
+    report = run(CORNELL, out, more, progress=False, resume=True)
+    assert report["iterations"] == more.max_iterations
+    assert json.loads((slot / "zarr.json").read_text())["node_type"] == "group"
+
+
 def test_a_damaged_slot_to_continue_from_is_named_not_the_stopping_criteria(uninterrupted,
                                                                              tmp_path):
     # more iterations continue from the "continue" slot; when its bytes are damaged the

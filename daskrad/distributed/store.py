@@ -237,8 +237,10 @@ def _sealed(a: dict) -> dict:
 
 
 def _intact(a: dict) -> bool:
-    """Whether checkpoint attributes ``a`` match their ``state_sha256`` (a slot written
-    before slots carried one, formats 4–7 of earlier stores, is taken as it is)."""
+    """Whether checkpoint attributes ``a`` match their ``state_sha256``. A slot without one
+    (written before slots were sealed, by a daskrad of this format or an older one) is taken
+    as it is: the seal catches a damaged or hand-edited slot, not one whose seal was
+    deleted too."""
     return "state_sha256" not in a or a["state_sha256"] == _state_digest(a)
 
 
@@ -513,7 +515,10 @@ class Store:
             # or more iterations can continue from (``continue``): three slots
             busy = {g.attrs.get("checkpoint"), g.attrs.get("continue"), self._slot}
             slot = min(x for x in range(SLOTS) if x not in busy)
-            s = g.require_group("internal").require_group("checkpoint").require_group(str(slot))
+            # made anew: the slot is free, and what it held may be damaged (a garbled
+            # zarr.json that the resume skipped would stop require_group with a traceback)
+            s = g.require_group("internal").require_group("checkpoint").create_group(
+                str(slot), overwrite=True)
             arrays = {n: np.asarray(a, np.float64) for n, a in
                       (("radiosity", sol.radiosity), ("direct", sol.direct),
                        ("unshot", sol.unshot))}
