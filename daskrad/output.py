@@ -184,9 +184,9 @@ def clone_store(src: Path, dst: Path) -> None:
     in 14 ms), a copy where the file system has none. Links are safe because the store is
     never written in place: zarr replaces each chunk and ``zarr.json`` by writing a new file
     and renaming it over the old (docs/stack.md), which leaves the other name's file as it
-    was. The clone is built under a
-    temporary name of its own (``tempfile.mkdtemp``: made here, so removed here on failure)
-    and renamed to ``dst`` last, so a clone stopped half-way is never taken for a store."""
+    was. The clone is built under a temporary name of its own (``tempfile.mkdtemp``: made
+    here, so removed here on failure) and renamed to ``dst`` last, so a clone stopped
+    half-way is never taken for a store."""
     tmp = Path(tempfile.mkdtemp(prefix=f"{dst.name}.", suffix=".tmp", dir=dst.parent))
     try:
         shutil.copytree(src, tmp, symlinks=True, copy_function=_link_or_copy,
