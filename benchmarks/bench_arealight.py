@@ -33,6 +33,12 @@ process, with the vertex-light pairs by kind. The window's modes must give the s
 face test's vertices that moved (where it proved ``V = 0`` and the raster let a pixel or two
 through) are counted, with their largest change; and the face test and window again with every
 row of each pyramid's box walked (``prune=False``: the same bits, it must be slower).
+The direct pass takes its occluders from the scene's polygons (``Mesh.occluders``,
+:data:`daskrad.direct.POLYGON_OCCLUDERS`): the face test and window as the pass runs them
+through that grid (``polygons``) are timed in the same alternation against the element grid
+(``faces``); the irradiance they give is compared (relative RMS and largest change, the
+lights' classes that changed), and at the 16 vertices that moved most both are set beside
+32 × 32 stratified shadow rays (``rays``; they give the same value through either grid).
 Results go to ``results/arealight_scenes.json``.
 """
 
@@ -49,6 +55,7 @@ import numpy as np
 
 from daskrad import direct, tolerances
 from daskrad.kernels.arealight import HINT, SLABS, area_irradiance_stats
+from daskrad.kernels.direct import LIGHT_VISIBLE, irradiance_points
 from daskrad.kernels.faces import no_faces
 from daskrad.kernels.grid import build_grid
 from daskrad.kernels.lambert import lambert_polygon
@@ -194,23 +201,30 @@ def _scene(path: str, vertices: int) -> dict:
             ctx.emitter_corners, ctx.emitter_count, ctx.emitter_normal, ctx.emitter_radiance,
             direct.AREA_RESOLUTION, np.radians(tolerances.EDGE_ANGLE_DEG))
     window = no_faces(len(ctx.grid.triangles))
-    modes = {"faces": (ctx.faces, SLABS, HINT, True),
+    polygons = mesh.occluders
+    modes = {"polygons": (polygons.faces, SLABS, HINT, True),
+             "faces": (ctx.faces, SLABS, HINT, True),
              "every row": (ctx.faces, SLABS, HINT, False),
              "hint": (window, SLABS, HINT, True), "early stop": (window, SLABS, 0, True),
              "exhaustive": (window, 0, 0, False)}
-    for faces, slabs, hint, prune in modes.values():  # compile (or load) before timing
-        area_irradiance_stats(ctx.grid, faces, P[:4], N[:4], *args, slabs, hint, prune)
+    def grid_of(name):
+        return polygons.grid if name == "polygons" else ctx.grid
+
+    for name, (faces, slabs, hint, prune) in modes.items():  # compile (or load) first
+        area_irradiance_stats(grid_of(name), faces, P[:4], N[:4], *args, slabs, hint, prune)
     best = dict.fromkeys(modes, np.inf)
     out = {}
     for _ in range(2):
         for name, (faces, slabs, hint, prune) in modes.items():
             t = time.process_time()
-            out[name] = area_irradiance_stats(ctx.grid, faces, P, N, *args, slabs, hint,
+            out[name] = area_irradiance_stats(grid_of(name), faces, P, N, *args, slabs, hint,
                                               prune)
             best[name] = min(best[name], time.process_time() - t)
     moved = np.abs(out["faces"][0] - out["exhaustive"][0]).sum(axis=1)
     total = out["exhaustive"][0].sum(axis=1)
-    return {"scene": Path(path).name, "vertices": len(P), "of_vertices": V,
+    return {**_polygons(ctx, polygons.grid, P, N, out["faces"], out["polygons"]),
+            "cpu_seconds_polygons": best["polygons"],
+            "scene": Path(path).name, "vertices": len(P), "of_vertices": V,
             "emitter_patches": int(len(ctx.emitter_corners)), **_pairs(ctx, P, N),
             "cpu_seconds_faces": best["faces"],
             "cpu_seconds_every_row": best["every row"],
@@ -228,6 +242,34 @@ def _scene(path: str, vertices: int) -> dict:
                               and np.array_equal(out["early stop"][0], out["exhaustive"][0])
                               and all(np.array_equal(a, b) for a, b in
                                       zip(out["faces"], out["every row"], strict=True)))}
+
+
+def _polygons(ctx, grid, P, N, elements, polygons) -> dict:
+    """How the window's irradiance and classes through the polygons' grid differ from the
+    elements' (``(H, work, classes)`` of each), and at the 16 vertices that moved most, the
+    mean distance of each to 32 × 32 shadow rays."""
+    He, Hp = elements[0], polygons[0]
+    d = Hp - He
+    top = np.argsort(-np.abs(d).sum(axis=1))[:16]
+    z3 = np.zeros((0, 3))
+    rays = {}
+    for name, g in (("elements", ctx.grid), ("polygons", grid)):
+        rays[name], _ = irradiance_points(
+            g, P[top], P[top], N[top], top.astype(np.int64), float(ctx.offset), z3, z3, z3,
+            z3, ctx.emitter_corners, ctx.emitter_count, ctx.emitter_normal,
+            ctx.emitter_radiance, ctx.emitter_area, 32)
+    ref = rays["polygons"].sum(axis=1)
+    ce, cp = elements[2], polygons[2]
+    return {"polygons_relative_rms": float(np.sqrt((d**2).mean() / (He**2).mean())),
+            "polygons_relative_max": float(np.abs(d).max() / He.max()),
+            "polygons_classes_changed": int((ce != cp).sum()),
+            "polygons_visible_lost": int(((ce == LIGHT_VISIBLE) & (cp != LIGHT_VISIBLE)).sum()),
+            "polygons_visible_gained": int(((ce != LIGHT_VISIBLE)
+                                            & (cp == LIGHT_VISIBLE)).sum()),
+            "rays_same_through_both_grids": bool(np.array_equal(rays["elements"],
+                                                                rays["polygons"])),
+            "moved_most_vs_rays_elements": float(np.abs(He[top].sum(axis=1) - ref).mean()),
+            "moved_most_vs_rays_polygons": float(np.abs(Hp[top].sum(axis=1) - ref).mean())}
 
 
 #: Runs of consecutive vertices :func:`_scene` takes, evenly spread over the scene.
@@ -253,6 +295,16 @@ def scenes(paths: list[str], vertices: int) -> list[dict]:
               f"{r['cpu_seconds_exhaustive']:.2f} ({r['candidates_exhaustive']}); hint "
               f"x{r['cpu_seconds_early_stop'] / r['cpu_seconds_hint']:.2f} over the early "
               f"stop, same bits: {r['same_bits']}")
+        print(f"  occluders from the polygons: CPU s {r['cpu_seconds_polygons']:.2f} against "
+              f"{r['cpu_seconds_faces']:.2f} through the elements "
+              f"(x{r['cpu_seconds_faces'] / r['cpu_seconds_polygons']:.2f}); irradiance "
+              f"relative RMS change {r['polygons_relative_rms']:.1e}, largest "
+              f"{r['polygons_relative_max']:.1e} of the largest; classes changed "
+              f"{r['polygons_classes_changed']} (visible lost {r['polygons_visible_lost']}, "
+              f"gained {r['polygons_visible_gained']}); at the 16 vertices moved most, mean "
+              f"distance to 32² shadow rays elements {r['moved_most_vs_rays_elements']:.2e}, "
+              f"polygons {r['moved_most_vs_rays_polygons']:.2e} (rays the same through both "
+              f"grids: {r['rays_same_through_both_grids']})")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "arealight_scenes.json").write_text(json.dumps(rows, indent=2) + "\n")
     return rows

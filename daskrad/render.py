@@ -26,12 +26,12 @@ from daskrad import direct, tolerances
 from daskrad.direct import DirectLight, Lights
 from daskrad.errors import SceneError
 from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_TRACE, LIGHT_VISIBLE
-from daskrad.kernels.grid import DEFAULT_DENSITY, Grid, build_grid, closest_hit
+from daskrad.kernels.grid import Grid, build_grid, closest_hit
 from daskrad.kernels.shade import direct_at_hits
 from daskrad.kernels.unshadowed import unshadowed_elements
-from daskrad.mesh import default_sizes, one_sided, vertex_average
+from daskrad.mesh import default_sizes, vertex_average
 from daskrad.mesh.refine import TVertices, resolve_tvertices
-from daskrad.scene.corners import repeat_third, split_quads
+from daskrad.scene.corners import repeat_third
 from daskrad.scene.types import Camera, Scene
 from daskrad.settings import Settings
 from daskrad.solve import Solution, ambient
@@ -149,8 +149,9 @@ class RenderContext:
         :func:`hidden_lights`), else ``LIGHT_TRACE`` (:func:`with_light_modes`); ``None``:
         every hit traces every light.
     occluders : Grid, optional
-        The voxel grid over the scene's polygons (:func:`occluder_grid`), which the shadow
-        rays of the per-pixel pass walk instead of ``grid`` (:data:`POLYGON_OCCLUDERS`);
+        The voxel grid over the scene's polygons (:func:`daskrad.preprocess.occluders`),
+        which the shadow rays of the per-pixel pass walk instead of ``grid``
+        (:data:`POLYGON_OCCLUDERS`);
         ``None`` (a store written before it): ``grid``.
     """
 
@@ -624,8 +625,9 @@ def shadow_grid(ctx: RenderContext) -> Grid:
 
 
 #: The per-pixel pass's shadow rays walk the grid over the scene's polygons
-#: (:func:`occluder_grid`) instead of the grid over the elements (``bench_perpixel``; the
-#: README has its figures; ``False`` is the benchmark's reference arm).
+#: (:func:`daskrad.preprocess.occluders`) instead of the grid over the elements
+#: (``bench_perpixel``; the README has its figures; ``False`` is the benchmark's reference
+#: arm).
 POLYGON_OCCLUDERS = True
 
 #: Each area light's shadow rays in a tile try the triangle that blocked the light's last ray
@@ -740,7 +742,7 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
                         elem_normal=h.elem_normal, vertex_radiance=indirect + direct_v,
                         camera=cam, spp=settings.spp, edge_spp=settings.edge_spp,
                         edge_step=EDGE_STEP * white_level(h.elem_verts, indirect + direct_v),
-                        occluders=occluder_grid(scene, len(mesh.triangles)))
+                        occluders=mesh.occluders.grid)
     mats, mat = scene.materials, h.elem_material
     ctx = perpixel_context(
         ctx, h.elem_verts, vertex_indirect=indirect, vertex_direct=direct_v,
@@ -755,32 +757,6 @@ def context(scene: Scene, light: DirectLight, sol: Solution, settings: Settings,
         tvertices=light.tvertices,
         element_size=settings.element_size or default_sizes(scene)[1])
     return with_light_modes(with_unshadowed(ctx, h), h, light.classes, light.tvertices)
-
-
-def occluder_grid(scene: Scene, cells_for: int) -> Grid:
-    """The voxel grid over the scene's polygons as triangles (quads split along 0–2, as
-    loaded), with the back of every two-sided polygon as the mesh makes it
-    (:func:`daskrad.mesh.one_sided`, ``TWO_SIDED_GAP`` behind the front): what blocks a
-    shadow ray. The elements subdivide these polygons in their planes (patches, elements,
-    adaptive subdivision, cuts at contacts), so both sets of triangles cover the same surfaces
-    (up to the rounding of a back's corners, moved along the normal of the whole polygon
-    rather than of a cut piece), and a shadow ray, which asks only whether something lies
-    between, gets the same answer from either but along an edge the elements add inside a
-    polygon (the edge tolerance, ``grid.eps``, is absolute). The polygons are fewer and larger
-    (RenderPark's office: 53,364 triangles against 224,515), so a cell holds a polygon
-    instead of its elements.
-
-    ``cells_for``: the grid has the cells of a grid over that many triangles (the
-    elements'), not of one over the polygons: measured on 7 of the converted office's 35
-    tiles (400 × 300) and all of ``office3``'s (192 × 144), tiles through the element grid
-    16.18 / 6.90 s, through a polygon grid of its own density (a quarter and a ninth of the
-    cells) 12.32 / 7.77 s, of the elements' cells 11.73 / 6.16 s, the same image in each:
-    coarse cells hold pieces of many polygons, and a large polygon is tested again in every
-    cell a ray crosses."""
-    scene = one_sided(scene)
-    tri, _ = split_quads(scene.polygons)
-    return build_grid(np.ascontiguousarray(scene.vertices[tri], dtype=np.float64),
-                      density=DEFAULT_DENSITY * max(cells_for, 1) / max(len(tri), 1))
 
 
 def vertex_split(light: DirectLight, sol: Solution) -> tuple[np.ndarray, np.ndarray]:

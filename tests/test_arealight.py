@@ -97,6 +97,29 @@ def test_candidate_that_hides_no_pixel_leaves_lambert_exactly():
     assert np.array_equal(H[0], np.pi * LE * F * 1.0)
 
 
+@pytest.mark.parametrize("reach", [1.45, 1.05])
+def test_a_triangle_beside_the_pyramid_is_no_candidate(reach):
+    # A large triangle halfway up (y = 1), its near edge along x + z = reach. The pyramid's
+    # section there is x in [-0.35, 0.65], z in [-0.4, 0.6]: its corner reaches x + z = 1.25.
+    # No face plane of the pyramid separates the triangle (it spans the +x face's side and the
+    # +z face's), nor does its own plane (the eye below, the light above). At 1.45 it meets no
+    # ray to the light: no candidate, the light is wholly visible (exactly, class VISIBLE); at
+    # 1.05 it cuts the corner off the light.
+    from daskrad.kernels.direct import LIGHT_TRACE, LIGHT_VISIBLE
+
+    tri = np.array([[[reach + 1.05, 1.0, -1.05], [-1.05, 1.0, reach + 1.05], [3.0, 1.0, 3.0]]])
+    grid = build_grid(np.concatenate([_quad_tris(LIGHT), tri]))
+    H, work, classes = area_irradiance_stats(grid, no_faces(3), P[None], UP[None], OFF, HZ,
+                                             *_lights(LIGHT), 16, EDGE)
+    F = lambert_polygon(*P, *UP, LIGHT, 4)
+    if reach > 1.25:
+        assert work[0] == 0 and classes[0, 0] == LIGHT_VISIBLE
+        assert np.array_equal(H[0], np.pi * LE * F * 1.0)
+    else:
+        assert work[0] == 1 and classes[0, 0] == LIGHT_TRACE
+        assert 0.5 < H[0, 0] / (np.pi * LE[0] * F) < 1.0
+
+
 @pytest.mark.parametrize("resolution", [64, 128, 256])
 def test_half_hidden_light_within_the_window_bound(resolution):
     # A wide blocker at y = 1 over x > 0.4 (facing up, both sides block): from p = (0.3, 0,

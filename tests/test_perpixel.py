@@ -336,7 +336,7 @@ def test_the_polygons_grid_covers_every_element_the_backs_of_two_sided_faces_too
                               point_lights=(LIGHT[None], [[INTENSITY] * 3]),
                               two_sided=[False, two_sided])       # per material
     mesh = preprocess(scene, Settings(patch_size=1.0, element_size=0.5))
-    occluders = render.occluder_grid(scene, len(mesh.triangles))
+    occluders, faces = mesh.occluders
     t = mesh.triangles
     n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
     n /= np.linalg.norm(n, axis=1, keepdims=True)
@@ -344,6 +344,21 @@ def test_the_polygons_grid_covers_every_element_the_backs_of_two_sided_faces_too
     hit_t, tri, _, _ = closest_hit(occluders, t.mean(axis=1) + hair * n, -n, 0.0, 2 * hair)
     assert (tri >= 0).all()
     assert len(mesh.triangles) > 100 and len(occluders.triangles) == (6 if two_sided else 4)
+    # each occluder triangle lies in the convex face it names (the face test takes a light
+    # hidden behind the whole face), wound as the face
+    from daskrad.kernels.geometry import within_edges
+
+    for k, tri_k in enumerate(occluders.triangles):
+        f = faces.tri_face[k]
+        assert faces.start[f + 1] == faces.start[f] + 1
+        nk = np.cross(tri_k[1] - tri_k[0], tri_k[2] - tri_k[0])
+        nk /= np.linalg.norm(nk)
+        for x in list(tri_k) + [tri_k.mean(axis=0)]:
+            assert within_edges(faces.corners[f], faces.count[f], *x, *nk, -occluders.eps)
+        # and not in a face it does not lie in: beyond the face's first corner
+        c = faces.corners[f, :faces.count[f]]
+        out = c[0] + 0.1 * (c[0] - c.mean(axis=0))
+        assert not within_edges(faces.corners[f], faces.count[f], *out, *nk, -occluders.eps)
 
 
 def lambert_polygon_at(q):

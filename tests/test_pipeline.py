@@ -58,13 +58,16 @@ def test_run_is_the_composition_of_the_steps(steps, tmp_path):
 
 def test_grid_and_triangles_are_built_once_and_carried(steps):
     # the shooters' occluder probes, the ray-cast method and the renderer read the mesh's own
-    # grid: no second grid over the same triangles
+    # grid: no second grid over the same triangles; the direct pass and the per-pixel pass's
+    # shadow rays read the one grid over the polygons, which refinement keeps
     scene, mesh, light, _, image = steps
     ex = InProcess()
     solve.radiosity(light, SMALL.replace(max_iterations=1), ex)
     assert ex.shoot_ctx.grid is light.mesh.grid
     assert image.context.grid is light.mesh.grid
-    assert light.context is None or light.context.grid is mesh.grid
+    assert light.mesh.occluders is mesh.occluders
+    assert image.context.occluders is mesh.occluders.grid
+    assert light.context is None or light.context.grid is mesh.occluders.grid
 
 
 def test_refined_mesh_rebuilds_its_triangles():

@@ -15,8 +15,8 @@ measures it on the disc, but only where the light is:
 
 1. Candidate occluders through the voxel grid: the triangles registered in the cells of the
    bounding box of the pyramid ``{eye} ∪ light`` that cross the pyramid (a cell wholly outside
-   one of its face planes is skipped), kept when no face plane of the pyramid separates them
-   and they reach above the horizon and in front of the light. With no candidate, ``V = 1``
+   one of its face planes is skipped), kept when some part of them lies inside the pyramid,
+   above the horizon and in front of the light. With no candidate, ``V = 1``
    and nothing is rasterized (the common case in open parts of a scene).
 2. Project the light onto the disc exactly as the hemisphere-base form factor projects an
    element (:func:`daskrad.kernels.hemisphere.project_element`: horizon clip, edges split into
@@ -318,6 +318,11 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid
     first ``n_c``; returns the new count. Only cells ``i0..i1 × j0..j1 × k0..k1`` (a part of
     :func:`_box_cells`) are walked.
 
+    A candidate has a part inside the pyramid (its faces widened by their margins, in front
+    of the light by more than ``off``) and above the horizon: no other triangle can cover a
+    pixel of the light (a covered pixel's ray meets it in front of the light), so dropping
+    them changes no ``V``, and a pair left without a candidate is :data:`LIGHT_VISIBLE`.
+
     A triangle intersecting the pyramid has a point ``x`` inside it (within ``off``); ``x``
     lies in some cell, in whose list the grid registered the triangle, and that cell is not
     rejected (its corner farthest inside each plane is at least as far inside as ``x``). So
@@ -334,6 +339,21 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid
     """
     npl = count + 1
     origin, cell, dims = grid.origin, grid.cell, grid.dims
+    # the pyramid's half-spaces as clip_polygon takes them: its faces widened by their
+    # margins, in front of the light by more than off, and the eye's horizon
+    cpl = np.empty((count + 2, 4))
+    for a in range(count):
+        for x in range(3):
+            cpl[a, x] = planes[a, x]
+        cpl[a, 3] = planes[a, 3] - planes[a, 4]
+    for x in range(3):
+        cpl[count, x] = planes[count, x]
+    cpl[count, 3] = planes[count, 3] + off
+    cpl[count + 1, 0] = nx
+    cpl[count + 1, 1] = ny
+    cpl[count + 1, 2] = nz
+    cpl[count + 1, 3] = nx * ex + ny * ey + nz * ez + hz
+    sc = np.empty((6, count + 6))
     hx = 0.5 * cell[0]
     hy = 0.5 * cell[1]
     hzc = 0.5 * cell[2]
@@ -422,6 +442,14 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid
                         if best < -planes[a, 4]:
                             keep = False
                             break
+                    if keep:
+                        # exactly: some part of it inside the pyramid (widened by the
+                        # planes' margins) and above the horizon; the face planes alone
+                        # keep a large triangle that passes beside the pyramid
+                        for v in range(3):
+                            for x in range(3):
+                                sc[x, v] = tris[t, v, x]
+                        keep = clip_polygon(sc, 3, cpl, count + 2) >= 3
                     if keep:
                         cand[n_c] = t
                         n_c += 1
