@@ -73,7 +73,9 @@ def occluders(scene: Scene, cells_for: int) -> Occluders:
     16.18 / 6.90 s, through a polygon grid of its own density (a quarter and a ninth of the
     cells) 12.32 / 7.77 s, of the elements' cells 11.73 / 6.16 s, the same image in each:
     coarse cells hold pieces of many polygons, and a large polygon is tested again in every
-    cell a ray crosses."""
+    cell a ray crosses. (Those runs sized it from the refined mesh; it is sized from the mesh
+    before refinement now, built before the direct pass: ``graz.obj`` 154,495 triangles
+    against ~190,000, and its whole run's render did not slow, 51.2 → 48.8 s.)"""
     scene = one_sided(scene)
     poly = scene.polygons
     tri, owner = split_quads(poly)

@@ -153,7 +153,8 @@ def clip_polygon(poly, n_p, planes, count):
 
     A crossing point is computed from the lexicographically smaller end of its edge, so two
     triangles sharing an edge get the same point (their projections stay watertight).
-    At most ``3 + count`` corners for a triangle: ``poly`` holds 8, enough for 5 planes.
+    At most ``3 + count`` corners for a triangle: ``poly (6, 8)`` is enough for 5 planes
+    (:func:`_occlude`), ``(6, 10)`` for the 6 of a candidate's test (:func:`_candidates`).
     """
     for pl in range(count):
         kx = planes[pl, 0]
@@ -313,15 +314,18 @@ def _narrow(k, rest, origin, cell, lo, hi, a, b):
 
 @jit
 def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid, cand,
-                n_c, i0, i1, j0, j1, k0, k1, prune=True):
+                n_c, i0, i1, j0, j1, k0, k1, cpl, sc, prune=True):
     """Triangles that may hide part of the light from the eye, appended to ``cand`` after its
     first ``n_c``; returns the new count. Only cells ``i0..i1 × j0..j1 × k0..k1`` (a part of
-    :func:`_box_cells`) are walked.
+    :func:`_box_cells`) are walked. ``off`` here is the height over the light's plane below
+    which nothing can hide it (the raster's ``off`` along the most slanted ray,
+    :func:`visible_fraction`); ``cpl (6, 4)`` and ``sc (6, 10)`` are scratch.
 
     A candidate has a part inside the pyramid (its faces widened by their margins, in front
-    of the light by more than ``off``) and above the horizon: no other triangle can cover a
-    pixel of the light (a covered pixel's ray meets it in front of the light), so dropping
-    them changes no ``V``, and a pair left without a candidate is :data:`LIGHT_VISIBLE`.
+    of the light by more than ``off``) and above the horizon: a triangle that has none meets
+    no segment from the eye to the light, so a pair left without a candidate is exactly
+    :data:`LIGHT_VISIBLE`, and dropping it changes no ``V`` but where the raster's polyline
+    outlines of the light stray outside the true pyramid (within the raster's own error).
 
     A triangle intersecting the pyramid has a point ``x`` inside it (within ``off``); ``x``
     lies in some cell, in whose list the grid registered the triangle, and that cell is not
@@ -341,7 +345,6 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid
     origin, cell, dims = grid.origin, grid.cell, grid.dims
     # the pyramid's half-spaces as clip_polygon takes them: its faces widened by their
     # margins, in front of the light by more than off, and the eye's horizon
-    cpl = np.empty((count + 2, 4))
     for a in range(count):
         for x in range(3):
             cpl[a, x] = planes[a, x]
@@ -353,7 +356,6 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid
     cpl[count + 1, 1] = ny
     cpl[count + 1, 2] = nz
     cpl[count + 1, 3] = nx * ex + ny * ey + nz * ez + hz
-    sc = np.empty((6, count + 6))
     hx = 0.5 * cell[0]
     hy = 0.5 * cell[1]
     hzc = 0.5 * cell[2]
@@ -651,7 +653,7 @@ def _occlude(grid, ex, ey, ez, n, cand, s0, s1, hz, r, cos_thr, tab, lx, ly, lz,
 
 @jit
 def _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid, cand, n_c,
-            i0, i1, j0, j1, k0, k1, prune=True):
+            i0, i1, j0, j1, k0, k1, cpl, sc, prune=True):
     """:func:`_candidates` over the cells of the hinted occluders' bounding boxes within
     ``i0..i1 × j0..j1 × k0..k1``: the candidates of those cells, appended after ``cand[:n_c]``;
     returns the new count (:func:`visible_fraction`)."""
@@ -674,7 +676,8 @@ def _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid, cand,
         c0, c1 = max(c0, k0), min(c1, k1)
         if a0 <= a1 and b0 <= b1 and c0 <= c1:
             found = _candidates(grid, ex, ey, ez, n[0], n[1], n[2], count, planes, hz, off,
-                                stamp, sid, cand, found, a0, a1, b0, b1, c0, c1, prune)
+                                stamp, sid, cand, found, a0, a1, b0, b1, c0, c1, cpl, sc,
+                                prune)
     return found
 
 
@@ -682,7 +685,7 @@ def _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid, cand,
 def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_thr, tab,
                      planes, stamp, sid, cand, lx, ly, lz, ev, enrm, eoff, scr, qclip, xs, ys,
                      xcross, cnt, item, zbuf, mask, xc, yc, slabs, hint, hid, clip, poly,
-                     prune=True):
+                     cpl, sc, prune=True):
     """``(V, n_candidates)``: the visible fraction of one light from ``p`` (module docstring).
 
     ``corners (count, 3)`` is the light, ``en (3,)`` its unit emitting normal (``p`` must lie
@@ -719,6 +722,18 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
     ez = p[2] + off * n[2]
     _pyramid(ex, ey, ez, corners, count, en, off, planes)
     i0, i1, j0, j1, k0, k1 = _box_cells(grid, ex, ey, ez, corners, count, off)
+    # An occluder hides a pixel when it is nearer than the light by more than off along the
+    # pixel's ray, i.e. higher than off·cos θ over the light's plane; cos θ is least towards
+    # a corner (the light is convex), so nothing lower can hide any pixel.
+    off_l = off
+    for a in range(count):
+        dx = ex - corners[a, 0]
+        dy = ey - corners[a, 1]
+        dz = ez - corners[a, 2]
+        dl = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if dl > 0.0:
+            off_l = min(off_l, off * (en[0] * dx + en[1] * dy + en[2] * dz) / dl)
+    off_l = max(off_l, 0.0)
     # the longest axis of the box in cells, walked from the eye's end
     axis = 0
     lo = i0
@@ -743,8 +758,8 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
     first_pass = -1 if stop and hint[hint.shape[0] - 1] > 0 else 0
     for q in range(first_pass, (n_layers + thick - 1) // thick):
         if q < 0:
-            found = _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid,
-                            cand, n_c, i0, i1, j0, j1, k0, k1, prune)
+            found = _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off_l, stamp, sid,
+                            cand, n_c, i0, i1, j0, j1, k0, k1, cpl, sc, prune)
             # the hinted occluders themselves drawn first: where they hide the light alone,
             # the other candidates of their cells are not drawn (the order changes no pixel)
             nh = hint.shape[0] - 1
@@ -772,7 +787,8 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
             else:
                 c0, c1 = s0, s1
             found = _candidates(grid, ex, ey, ez, n[0], n[1], n[2], count, planes, hz,
-                                off, stamp, sid, cand, n_c, a0, a1, b0, b1, c0, c1, prune)
+                                off_l, stamp, sid, cand, n_c, a0, a1, b0, b1, c0, c1, cpl, sc,
+                                prune)
         if found == n_c:
             continue
         if not ready:
@@ -870,6 +886,8 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
     planes = np.zeros((5, 5))
     clip = np.zeros((5, 5))
     poly = np.empty((6, 8))
+    cpl = np.empty((6, 4))      # a candidate's clip (_candidates): 4 faces, light, horizon
+    sc = np.empty((6, 10))      # ... a triangle clipped by 6 planes keeps at most 9 corners
     lx = np.empty(8)
     ly = np.empty(8)
     lz = np.empty(8)
@@ -917,7 +935,7 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
                                         cos_thr, tab, planes, stamp, sid, cand, lx, ly, lz,
                                         ev, enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item,
                                         zbuf, mask, xc, yc, slabs, hints[m], hid, clip,
-                                        poly, prune)
+                                        poly, cpl, sc, prune)
             sid += 1
             if hint > 0 and vis == 0.0 and hid[hid.shape[0] - 1] > 0:
                 hints[m, :] = hid

@@ -12,8 +12,10 @@ area method's time (hidden lights block their rays early, cheaply), and at the p
 pass's hits, mostly lit by the lights of the room in view, it proved 4 % of the pairs and
 cost more than it saved (+4 %).
 
-A face is an input polygon (a triangle or a planar convex quad), the union of its patches; the
-occluder grid's triangles are its elements' triangles (:func:`daskrad.direct.polygon_faces`).
+A face is an input polygon (a triangle or a planar convex quad). The direct pass's occluder
+grid holds the polygons' own triangles, one piece per face
+(:func:`daskrad.preprocess.occluders`); over a grid of the elements, a face is the union of its
+patches (:func:`daskrad.direct.polygon_faces`).
 """
 
 from __future__ import annotations
@@ -35,8 +37,8 @@ class Faces(NamedTuple):
     start : (F + 1,) int64
         Face ``f`` is the union of the convex pieces ``start[f]:start[f + 1]``.
     corners : (P, 4, 3) float64
-        The pieces (patches), counter-clockwise about their face's normal; ``count (P,)
-        int64`` corners each (3 or 4).
+        The pieces (the polygon itself, or its patches), counter-clockwise about their
+        face's normal; ``count (P,) int64`` corners each (3 or 4).
     """
 
     tri_face: np.ndarray

@@ -7,10 +7,11 @@ few hits that need more: hits on elements whose vertex colours spread more than 
 materials with a specular part (a Phong lobe from every light). Both go through
 :func:`daskrad.kernels.direct.irradiance_one`, so a pixel and a vertex at the same place get the
 same direct light, with the same robust shadow-ray offset, through the same grid over the
-scene's polygons (:func:`daskrad.preprocess.occluders`); only an area light every corner of
-the hit's element sees whole is taken as visible without its shadow rays (``modes``,
-:func:`daskrad.render.light_modes`), and with ``probe`` a traced light whose four corner
-strata agree is taken as they are (:func:`daskrad.kernels.direct.irradiance_one`).
+scene's polygons (:func:`daskrad.preprocess.occluders`; both passes' ``POLYGON_OCCLUDERS``
+flags, and the grid over the elements for a store written before it); only an area light
+every corner of the hit's element sees whole is taken as visible without its shadow rays
+(``modes``, :func:`daskrad.render.light_modes`), and with ``probe`` a traced light whose four
+corner strata agree is taken as they are (:func:`daskrad.kernels.direct.irradiance_one`).
 
 Area-light shadow rays are stratified and jittered by a hash of the hit's ``seed`` (its pixel
 sample id, see :func:`daskrad.render.sample_ids`): a pixel's value depends on the pixel, never
