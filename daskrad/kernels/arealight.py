@@ -319,7 +319,8 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid
     first ``n_c``; returns the new count. Only cells ``i0..i1 × j0..j1 × k0..k1`` (a part of
     :func:`_box_cells`) are walked. ``off`` here is the height over the light's plane below
     which nothing can hide it (the raster's ``off`` along the most slanted ray,
-    :func:`visible_fraction`); ``cpl (6, 4)`` and ``sc (6, 10)`` are scratch.
+    :func:`visible_fraction`); ``cpl`` the pyramid's half-spaces (:func:`_candidate_planes`),
+    ``sc (6, 10)`` scratch.
 
     A candidate has a part inside the pyramid (its faces widened by their margins, in front
     of the light by more than ``off``) and above the horizon: a triangle that has none meets
@@ -343,19 +344,6 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid
     """
     npl = count + 1
     origin, cell, dims = grid.origin, grid.cell, grid.dims
-    # the pyramid's half-spaces as clip_polygon takes them: its faces widened by their
-    # margins, in front of the light by more than off, and the eye's horizon
-    for a in range(count):
-        for x in range(3):
-            cpl[a, x] = planes[a, x]
-        cpl[a, 3] = planes[a, 3] - planes[a, 4]
-    for x in range(3):
-        cpl[count, x] = planes[count, x]
-    cpl[count, 3] = planes[count, 3] + off
-    cpl[count + 1, 0] = nx
-    cpl[count + 1, 1] = ny
-    cpl[count + 1, 2] = nz
-    cpl[count + 1, 3] = nx * ex + ny * ey + nz * ez + hz
     hx = 0.5 * cell[0]
     hy = 0.5 * cell[1]
     hzc = 0.5 * cell[2]
@@ -652,6 +640,24 @@ def _occlude(grid, ex, ey, ez, n, cand, s0, s1, hz, r, cos_thr, tab, lx, ly, lz,
 
 
 @jit
+def _candidate_planes(planes, count, off, ex, ey, ez, n, hz, cpl):
+    """``cpl[:count + 2]``: the half-spaces a candidate must reach into
+    (:func:`_candidates`), as :func:`clip_polygon` takes them (``k · x − kd >= 0``): the
+    pyramid's faces ``planes[:count]`` widened by their margins, its light plane
+    ``planes[count]`` moved ``off`` towards the eye, and the eye's horizon ``hz`` above it
+    along ``n``."""
+    for a in range(count):
+        for x in range(3):
+            cpl[a, x] = planes[a, x]
+        cpl[a, 3] = planes[a, 3] - planes[a, 4]
+    for x in range(3):
+        cpl[count, x] = planes[count, x]
+        cpl[count + 1, x] = n[x]
+    cpl[count, 3] = planes[count, 3] + off
+    cpl[count + 1, 3] = n[0] * ex + n[1] * ey + n[2] * ez + hz
+
+
+@jit
 def _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid, cand, n_c,
             i0, i1, j0, j1, k0, k1, cpl, sc, prune=True):
     """:func:`_candidates` over the cells of the hinted occluders' bounding boxes within
@@ -734,6 +740,7 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
         if dl > 0.0:
             off_l = min(off_l, off * (en[0] * dx + en[1] * dy + en[2] * dz) / dl)
     off_l = max(off_l, 0.0)
+    _candidate_planes(planes, count, off_l, ex, ey, ez, n, hz, cpl)
     # the longest axis of the box in cells, walked from the eye's end
     axis = 0
     lo = i0
@@ -886,7 +893,7 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
     planes = np.zeros((5, 5))
     clip = np.zeros((5, 5))
     poly = np.empty((6, 8))
-    cpl = np.empty((6, 4))      # a candidate's clip (_candidates): 4 faces, light, horizon
+    cpl = np.empty((6, 4))      # a candidate's half-spaces: 4 faces, light, horizon
     sc = np.empty((6, 10))      # ... a triangle clipped by 6 planes keeps at most 9 corners
     lx = np.empty(8)
     ly = np.empty(8)
