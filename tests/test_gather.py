@@ -12,6 +12,7 @@ import pytest
 
 from daskrad.formfactor import element_grid
 from daskrad.kernels.gather import apply_operator, gather_operator
+from daskrad.kernels.grid import build_grid, locator
 from daskrad.kernels.lambert import lambert_polygon
 from daskrad.scene.corners import split_quads
 from daskrad.testing import closed_box
@@ -19,9 +20,11 @@ from daskrad.testing import closed_box
 SIDE = 24
 
 
-def _box_operator(points, n=4, exclude=None, first_seed=0):
+def _box_operator(points, n=4, exclude=None, first_seed=0, located=False):
     """The operator rows of ``points`` (on the floor, facing up) in the closed unit box with
-    ``n × n`` elements a face; the seeds are ``first_seed + row``, as vertex ids would be."""
+    ``n × n`` elements a face; the seeds are ``first_seed + row``, as vertex ids would be.
+    ``located``: the rays' hits found among the box's 6 faces and located among the elements
+    (:func:`daskrad.kernels.grid.closest_hit_located`)."""
     vertices, elem_verts = closed_box(n)
     grid, owner = element_grid(vertices, elem_verts)
     tri, _ = split_quads(elem_verts)
@@ -33,8 +36,18 @@ def _box_operator(points, n=4, exclude=None, first_seed=0):
     seeds = np.arange(first_seed, first_seed + len(points), dtype=np.int64)
     op = gather_operator(grid, np.ascontiguousarray(tri), np.asarray(owner), normal, exclude,
                          len(vertices), np.ascontiguousarray(points, dtype=np.float64),
-                         normals, seeds, 1e-9, SIDE)
+                         normals, seeds, 1e-9, SIDE, *_polygons(located, grid), located)
     return op, vertices, elem_verts
+
+
+def _polygons(located, grid):
+    """``(polygons, locator)`` of the unit box's faces for :func:`gather_operator` (the
+    element ``grid`` and no locator when not ``located``)."""
+    if not located:
+        return grid, np.zeros((0, 13))
+    faces, quads = closed_box(1)
+    tri, _ = split_quads(quads)
+    return build_grid(faces[tri]), locator(grid.triangles)
 
 
 def _floor_points(rng, k):
@@ -94,3 +107,17 @@ def test_the_rows_do_not_depend_on_the_split(rng):
     # and another seed gives other rays (the test can fail)
     c, _, _ = _box_operator(points[4:], first_seed=5)
     assert not np.array_equal(b[2], c[2])
+
+
+def test_rays_found_among_the_faces_gather_what_the_elements_walk_gathers(rng):
+    # the box's 6 faces (12 triangles) find each ray's hit, the elements' triangles locate it:
+    # the same rows to round-off (the box has no coincident faces, where the two may differ)
+    points = _floor_points(rng, 6)
+    walked, vertices, _ = _box_operator(points)
+    located, _, _ = _box_operator(points, located=True)
+    L = rng.random((len(vertices), 3))
+    np.testing.assert_allclose(apply_operator(located[0], located[1], located[2], L),
+                               apply_operator(walked[0], walked[1], walked[2], L),
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(located[3], walked[3], atol=1e-12)
+    assert len(located[1]) > 6 * 16

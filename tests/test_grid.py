@@ -545,3 +545,66 @@ def test_fan_gives_the_plain_walks_bits_and_skips_the_surface_below(rng, offset)
     assert (plain[..., 1][hit] >= len(field)).any()
     # every fan skipped triangles of the field under it (rays leave through them)
     assert (below > 0).all()
+
+
+def _located_scene(elements=4):
+    """The unit box (lit inside) with two squares back to back at ``z = 0.5`` (one facing up,
+    one down, coincident) and a lone square at ``z = 0.25`` that no element covers: the
+    surfaces as polygons (one quad each, split) and as ``elements × elements`` element quads
+    (split), with the triangles' lit normals."""
+    from daskrad.scene.corners import split_quads
+    from daskrad.testing import closed_box, grid, merge
+
+    def square(z, up, n):
+        o, u, v = [0.2, 0.2, z], [0.4, 0, 0], [0, 0.4, 0]
+        return grid(o, u, v, n) if up else grid(o, v, u, n)
+
+    def triangles(parts):
+        vertices, quads = merge(*parts)
+        tri, _ = split_quads(quads)
+        return vertices[tri]
+
+    polygons = triangles([closed_box(1), square(0.5, True, 1), square(0.5, False, 1),
+                          grid([0.2, 0.6, 0.25], [0, 0.2, 0], [0.2, 0, 0], 1)])
+    elements = triangles([closed_box(elements), square(0.5, True, 3), square(0.5, False, 3)])
+    return G.build_grid(polygons), G.build_grid(elements), elements
+
+
+def test_a_hit_found_among_the_polygons_is_located_on_the_elements_triangle(rng):
+    # rays from inside the box: the hit found through the polygons' grid and located among
+    # the element triangles is the walk's (the same t; a point both triangles hold where it
+    # lies on an edge they share), but where the two squares coincide, back to back: there
+    # the face towards the ray is taken, from above and from below, where the walk took
+    # whichever round-off favoured
+    polygons, elements, tris = _located_scene()
+    loc = G.locator(elements.triangles)
+    n = 4000
+    o = rng.uniform(0.05, 0.95, (n, 3))
+    d = rng.normal(size=(n, 3))
+    # rays into the squares' corners and edges, and through the uncovered square
+    d[:400] = np.array([0.2, 0.6, 0.5])[None] + rng.choice([0.0, 0.2, 0.4], (400, 1)) * \
+        np.array([1.0, 0, 0]) - o[:400]
+    d[400:600] = rng.uniform([0.2, 0.6, 0.25], [0.4, 0.8, 0.25], (200, 3)) - o[400:600]
+    t0, tri0, _, _ = G.closest_hit(elements, o, d, 0.0, np.inf)
+    t1, tri1, u, v = G.closest_hit_located_batch(polygons, loc, elements, o, d, 0.0, np.inf)
+    assert (tri0 >= 0).all() and (tri1 >= 0).all()            # a closed box
+    np.testing.assert_allclose(t1, t0, rtol=1e-12, atol=1e-12)
+    p = o + t1[:, None] * d
+    at = (1 - u - v)[:, None] * tris[tri1, 0] + u[:, None] * tris[tri1, 1] \
+        + v[:, None] * tris[tri1, 2]
+    np.testing.assert_allclose(at, p, atol=1e-12)           # the point, in that triangle
+    assert (u >= -1e-9).all() and (v >= -1e-9).all() and (u + v <= 1 + 1e-9).all()
+    normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    on_squares = np.abs(p[:, 2] - 0.5) < 1e-12
+    on_squares &= (p[:, :2] > 0.2 - 1e-12).all(axis=1) & (p[:, :2] < 0.6 + 1e-12).all(axis=1)
+    facing = np.einsum("ij,ij->i", normal[tri1], d) < 0
+    assert on_squares.sum() > 300 and facing[on_squares].all()
+    assert (tri1 == tri0)[~on_squares].mean() > 0.95       # but for shared edges
+    walk_facing = np.einsum("ij,ij->i", normal[tri0], d) < 0
+    assert not walk_facing[on_squares].all()               # the walk's coin: a test that fails
+    # the square no element covers is passed through (to the same t as the walk's, above)
+    tp = G.closest_hit(polygons, o, d, 0.0, np.inf)[0]
+    q = o + tp[:, None] * d
+    uncovered = (np.abs(q[:, 2] - 0.25) < 1e-12) & (q[:, 0] > 0.2) & (q[:, 0] < 0.4) \
+        & (q[:, 1] > 0.6) & (q[:, 1] < 0.8)
+    assert uncovered.sum() > 50 and (t1[uncovered] > tp[uncovered] + 1e-6).all()

@@ -319,6 +319,30 @@ def test_shadow_rays_through_the_polygons_give_the_elements_image(monkeypatch):
     assert count > 1000 and np.array_equal(polygons, elements)
 
 
+def test_the_views_rays_found_among_the_polygons_give_the_elements_image(monkeypatch):
+    # the primary rays and the junction gather's find their hits among the scene's polygons
+    # and locate them among the elements: the Cornell box (no coincident faces) gives the
+    # image of walking the elements, to round-off
+    from daskrad.run import solve_scene
+    from daskrad.scene import load_scene
+    from daskrad.settings import Settings
+    from tests.helpers import CORNELL
+
+    scene = load_scene(CORNELL)
+    settings = Settings(max_iterations=64, width=40, height=40)
+    _, _, sol, light = solve_scene(scene, settings)
+    ctx = render.context(scene, light, sol, settings, render.camera(scene, settings))
+    assert ctx.locator is None and ctx.junctions is not None
+    view = render.for_view(ctx)
+    assert view.locator is not None and len(view.locator) == len(ctx.grid.triangles)
+    located = render.pixels(ctx)
+    monkeypatch.setattr(render, "POLYGON_HITS", False)
+    assert render.for_view(ctx).locator is None
+    walked = render.pixels(ctx)
+    assert walked.max() > 0.1
+    np.testing.assert_allclose(located, walked, rtol=0, atol=1e-12 * walked.max())
+
+
 @pytest.mark.parametrize("two_sided", [False, True])
 def test_the_polygons_grid_covers_every_element_the_backs_of_two_sided_faces_too(two_sided):
     # a floor and a plate over it (two-sided or not): a ray from a hair above each element

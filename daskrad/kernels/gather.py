@@ -17,7 +17,7 @@ from numba import prange
 
 from daskrad.kernels._jit import jit, jit_parallel
 from daskrad.kernels.direct import hash01
-from daskrad.kernels.grid import aim_fan, any_hit_one, closest_hit_fan, new_fan
+from daskrad.kernels.grid import aim_fan, any_hit_one, closest_hit_fan, closest_hit_located, new_fan
 from daskrad.kernels.pathtrace import tangent_frame
 
 
@@ -51,7 +51,7 @@ def near_surface(grid, points, normals, off, reach, side):
 
 @jit
 def gather_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_vertices,
-                    points, normals, seeds, off, side):
+                    points, normals, seeds, off, side, polygons, loc, located):
     """The gather as a sparse linear operator: ``mean(L)`` seen from each point over ``side²``
     stratified, jittered, cosine-distributed rays is ``G · L − x`` for any vertex radiance
     ``L (V, 3)`` (Gouraud over the hit triangle is linear in ``L``), so the rays are cast once
@@ -68,6 +68,11 @@ def gather_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_v
     n_vertices : int
         ``V``, the number of mesh vertices ``L`` is given at.
     points, normals : (n, 3) float64; seeds : (n,) int64 jitter seeds; off : the ray offset.
+    polygons : Grid, loc : (T, 13) float64, located : bool
+        With ``located``, each ray's hit is found among the scene's polygons (their grid)
+        and located among ``grid``'s triangles (``loc``: :func:`daskrad.kernels.grid.locator`
+        of them), :func:`daskrad.kernels.grid.closest_hit_located`; else ``grid`` is walked
+        (``polygons`` and ``loc`` unread).
 
     Returns
     -------
@@ -89,19 +94,24 @@ def gather_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_v
     weights = np.empty(n * cap)
     excluded = np.zeros((n, 3))
     slot = np.full(n_vertices, -1, np.int64)   # where a vertex sits in the current row
-    fan = new_fan(grid)     # every ray of a point rises above its tangent plane
+    walked = polygons if located else grid
+    fan = new_fan(walked)   # every ray of a point rises above its tangent plane
     nnz = 0
     for i in range(n):
         nrm = normals[i]
         t, s = tangent_frame(nrm)
         o = points[i] + off * nrm
-        aim_fan(fan, grid, o, nrm, off)
+        aim_fan(fan, walked, o, nrm, off)
         row = nnz
         for k in range(ss):
             u = ((k % side) + hash01(seeds[i], 2 * k)) / side
             v = ((k // side) + hash01(seeds[i], 2 * k + 1)) / side
             d = cosine_direction(nrm, t, s, u, v)
-            th, tri, bu, bv = closest_hit_fan(grid, fan, o, d, off, np.inf)
+            if located:
+                th, tri, bu, bv = closest_hit_located(polygons, fan, grid, loc, o, d, off,
+                                                      np.inf)
+            else:
+                th, tri, bu, bv = closest_hit_fan(grid, fan, o, d, off, np.inf)
             if tri < 0:
                 continue
             e = tri_element[tri]

@@ -36,7 +36,15 @@ from typing import NamedTuple
 import numpy as np
 
 from daskrad.kernels._jit import jit
-from daskrad.kernels.tolerances import COORD_ROUND, FAN_MARGIN, GRID_MARGIN, GRID_PAD, RAY_EPS
+from daskrad.kernels.tolerances import (
+    COORD_ROUND,
+    FAN_MARGIN,
+    GRID_MARGIN,
+    GRID_PAD,
+    LOCATE_BARY,
+    LOCATE_PLANE,
+    RAY_EPS,
+)
 
 #: Largest number of cells along one axis.
 MAX_DIM = 512
@@ -250,6 +258,29 @@ def build_grid(
     cell_items = np.empty(int(cell_start[-1]), dtype=np.int32)
     _register(tris, origin, cell, dims, margin, exact, cell_start, cell_items, True)
     return Grid(origin, cell, dims, cell_start, cell_items, tris, float(eps))
+
+
+def locator(triangles: np.ndarray) -> np.ndarray:
+    """``(T, 13) float64``: what :func:`closest_hit_located` needs to find a point in each of
+    ``triangles (T, 3, 3)``: per row the first corner ``v0`` (3), the vectors ``a`` (3) and
+    ``b`` (3) that give a point's barycentric coordinates ``u = (P − v0) · a`` (of corner 1)
+    and ``v = (P − v0) · b`` (of corner 2) within the triangle's plane, its unit normal ``n``
+    (3, the winding's) and its plane offset ``n · v0``. A degenerate triangle has zeros
+    (no point lies in it)."""
+    tris = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
+    v0 = tris[:, 0]
+    e1 = tris[:, 1] - v0
+    e2 = tris[:, 2] - v0
+    normal = np.cross(e1, e2)
+    nn = np.einsum("ij,ij->i", normal, normal)
+    ok = nn > 0.0
+    inv = np.where(ok, 1.0 / np.where(ok, nn, 1.0), 0.0)[:, None]
+    # N·((P − v0) × e2) / |N|² and N·(e1 × (P − v0)) / |N|², as dot products with P − v0
+    a = np.cross(e2, normal) * inv
+    b = np.cross(normal, e1) * inv
+    unit = normal * np.sqrt(inv)
+    offset = np.einsum("ij,ij->i", unit, v0)
+    return np.ascontiguousarray(np.column_stack([v0, a, b, unit, offset]))
 
 
 # ------------------------------------------------------------------------------------------
@@ -556,6 +587,72 @@ def closest_hit_fan(grid, fan, o, d, tmin, tmax):
     return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, False, fan)
 
 
+#: Polygon hits :func:`closest_hit_located` tries to locate among the elements before it walks
+#: the elements' grid instead.
+LOCATE_TRIES = 16
+
+
+@jit
+def closest_hit_located(polygons, fan, grid, loc, o, d, tmin, tmax):
+    """:func:`closest_hit_fan` through ``grid`` (the elements' triangles), found through
+    ``polygons`` (a grid over the surfaces those triangles tile, :func:`daskrad.preprocess.
+    occluders`): ``(t, tri, u, v)`` with ``tri`` a triangle of ``grid``.
+
+    The polygons are fewer and larger: a ray walks their grid past fewer triangles (the
+    converted office's gather rays, 3.2 µs against 6.0 µs a ray). The point it hits is then
+    located in the cell of ``grid`` that holds it: among the triangles registered there, one
+    whose plane passes within ``LOCATE_PLANE`` edge tolerances of the point and whose
+    barycentric coordinates (``loc``, :func:`locator`) hold it, up to ``LOCATE_BARY``. ``t`` is
+    the polygon's. Where two surfaces coincide (two one-sided faces back to back, as an
+    office's converted papers are), the one facing the ray is taken, as the item buffers
+    take it (they cull faces turned away); a walk of the elements took whichever the
+    round-off of ``t`` favoured. A point no element holds (a polygon's part the elements
+    leave out) is passed through to the next polygon, as the walk of ``grid`` passes there
+    (after :data:`LOCATE_TRIES` such points, that walk answers). ``fan``: aimed at ``o`` for
+    ``polygons`` (:func:`aim_fan`), or :data:`NO_FAN`."""
+    origin, cell, dims = grid.origin, grid.cell, grid.dims
+    nx, ny, nz = dims[0], dims[1], dims[2]
+    ptol = LOCATE_PLANE * grid.eps
+    t0 = tmin
+    for _ in range(LOCATE_TRIES):
+        tp, ptri, _, _ = _walk(polygons, o[0], o[1], o[2], d[0], d[1], d[2], t0, tmax, False,
+                               fan)
+        if ptri < 0:
+            return np.inf, -1, 0.0, 0.0
+        px = o[0] + tp * d[0]
+        py = o[1] + tp * d[1]
+        pz = o[2] + tp * d[2]
+        i = max(0, min(nx - 1, int(np.floor((px - origin[0]) / cell[0]))))
+        j = max(0, min(ny - 1, int(np.floor((py - origin[1]) / cell[1]))))
+        k = max(0, min(nz - 1, int(np.floor((pz - origin[2]) / cell[2]))))
+        c = (k * ny + j) * nx + i
+        away, away_u, away_v = -1, 0.0, 0.0
+        for m in range(grid.cell_start[c], grid.cell_start[c + 1]):
+            tri = grid.cell_items[m]
+            if abs(loc[tri, 9] * px + loc[tri, 10] * py + loc[tri, 11] * pz
+                   - loc[tri, 12]) > ptol:
+                continue
+            wx = px - loc[tri, 0]
+            wy = py - loc[tri, 1]
+            wz = pz - loc[tri, 2]
+            u = wx * loc[tri, 3] + wy * loc[tri, 4] + wz * loc[tri, 5]
+            if u < -LOCATE_BARY:
+                continue
+            v = wx * loc[tri, 6] + wy * loc[tri, 7] + wz * loc[tri, 8]
+            if v < -LOCATE_BARY or u + v > 1.0 + LOCATE_BARY:
+                continue
+            if loc[tri, 9] * d[0] + loc[tri, 10] * d[1] + loc[tri, 11] * d[2] < 0.0:
+                return tp, tri, u, v
+            if away < 0:
+                away, away_u, away_v = tri, u, v
+        if away >= 0:
+            return tp, away, away_u, away_v
+        # no element there (a polygon's part the elements leave out): on to the next
+        # polygon beyond it, as a walk of the elements passes there
+        t0 = tp
+    return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, False, NO_FAN)
+
+
 @jit
 def any_hit_fan(grid, fan, o, d, tmin, tmax):
     """:func:`any_hit_one` for a ray of ``fan`` (:func:`aim_fan` at ``o``)."""
@@ -654,6 +751,31 @@ def _rays(origins, directions, tmin, tmax):
     lo = np.ascontiguousarray(np.broadcast_to(np.asarray(tmin, dtype=np.float64), (n,)))
     hi = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, dtype=np.float64), (n,)))
     return o, d, lo, hi
+
+
+@jit
+def _located_batch(polygons, grid, loc, origins, directions, tmin, tmax):
+    n = origins.shape[0]
+    t_out = np.empty(n, dtype=np.float64)
+    tri_out = np.empty(n, dtype=np.int32)
+    u_out = np.empty(n, dtype=np.float64)
+    v_out = np.empty(n, dtype=np.float64)
+    for r in range(n):
+        t, tri, u, v = closest_hit_located(polygons, NO_FAN, grid, loc, origins[r],
+                                           directions[r], tmin[r], tmax[r])
+        t_out[r] = t
+        tri_out[r] = tri
+        u_out[r] = u
+        v_out[r] = v
+    return t_out, tri_out, u_out, v_out
+
+
+def closest_hit_located_batch(polygons: Grid, loc: np.ndarray, grid: Grid, origins, directions,
+                              tmin, tmax):
+    """:func:`closest_hit` of ``grid``'s triangles for a batch of rays, each found through
+    ``polygons`` and located among them (:func:`closest_hit_located`; ``loc``:
+    :func:`locator` of ``grid.triangles``)."""
+    return _located_batch(polygons, grid, loc, *_rays(origins, directions, tmin, tmax))
 
 
 def closest_hit(grid: Grid, origins, directions, tmin, tmax):

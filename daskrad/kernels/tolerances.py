@@ -36,6 +36,16 @@ RAY_EPS = 1e-12
 #: (``RAY_OFFSET``, 10⁵ edge tolerances), are the ones skipped.
 FAN_MARGIN = 1000.0
 
+#: A closest hit found among the scene's polygons is located among the elements' triangles
+#: (:func:`daskrad.kernels.grid.closest_hit_located`) in the planes within this many edge
+#: tolerances (``RAY_EPS · diag``) of the hit point: far beyond the round-off of a point
+#: computed on one plane and tested against a copy of it, far below the gap between the two
+#: sides of a two-sided surface (``TWO_SIDED_GAP``, 10⁷ edge tolerances).
+LOCATE_PLANE = 1000.0
+#: ... and whose barycentric coordinates reach this far below 0 (a point on an edge two
+#: triangles share lies in both, up to round-off).
+LOCATE_BARY = 1e-9
+
 #: The voxel grid's box is the scene's box padded by this fraction of the scene diagonal on every
 #: side: a flat scene (zero extent on an axis) then still has a box of positive volume, and no
 #: vertex lies on the box's boundary.
