@@ -49,6 +49,17 @@ class Occluders(NamedTuple):
     faces: Faces
 
 
+#: Cells a polygon triangle at most in the occluders' grid (:func:`occluders`). The elements'
+#: cells put hundreds on each of a box's few large polygons (the Cornell box: 24³ cells for 46
+#: triangles), which rays then walk empty. Capped (11³ there), alternated in one process,
+#: medians of 3, the same bits (the direct light, its classes and the image; the Cornell box,
+#: the lit room, RenderPark's cube): the Cornell box's direct pass 0.234 → 0.181 s, its gather
+#: 0.786 → 0.700 s; the cube's (132 triangles, 37 × 36 × 37 → 16³ cells) 0.69 → 0.47 s and
+#: 2.19 → 1.83 s. 8 measured the same. Furnished interiors keep the elements' cells (about 6
+#: a triangle in the converted office).
+OCCLUDER_DENSITY_MAX = 32.0
+
+
 def occluders(scene: Scene, cells_for: int) -> Occluders:
     """The scene's polygons as triangles (quads split along 0–2, as loaded), with the back of
     every two-sided polygon as the mesh makes it (:func:`daskrad.mesh.one_sided`,
@@ -75,12 +86,14 @@ def occluders(scene: Scene, cells_for: int) -> Occluders:
     coarse cells hold pieces of many polygons, and a large polygon is tested again in every
     cell a ray crosses. (Those runs sized it from the refined mesh; it is sized from the mesh
     before refinement now, built before the direct pass: ``graz.obj`` 154,495 triangles
-    against ~190,000, and its whole run's render did not slow, 51.2 → 48.8 s.)"""
+    against ~190,000, and its whole run's render did not slow, 51.2 → 48.8 s.) A scene of few
+    polygons meshed finely gets at most :data:`OCCLUDER_DENSITY_MAX` cells a polygon triangle."""
     scene = one_sided(scene)
     poly = scene.polygons
     tri, owner = split_quads(poly)
+    density = DEFAULT_DENSITY * max(cells_for, 1) / max(len(tri), 1)
     grid = build_grid(np.ascontiguousarray(scene.vertices[tri], dtype=np.float64),
-                      density=DEFAULT_DENSITY * max(cells_for, 1) / max(len(tri), 1))
+                      density=min(density, OCCLUDER_DENSITY_MAX))
     corners = scene.vertices[np.where(poly >= 0, poly, poly[:, :1])]
     faces = Faces(tri_face=owner.astype(np.int32),
                   start=np.arange(len(poly) + 1, dtype=np.int64),
