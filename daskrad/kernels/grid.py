@@ -711,14 +711,19 @@ def any_hit_brute_one(grid, o, d, tmin, tmax):
 
 
 @jit
-def _closest_batch(grid, origins, directions, tmin, tmax, brute):
+def _closest_batch(grid, origins, directions, tmin, tmax, brute, polygons, loc, located):
+    """Closest hits of a batch: by brute force, by the walk of ``grid``, or (``located``)
+    found through ``polygons`` and located among ``grid``'s triangles (``loc``)."""
     n = origins.shape[0]
     t_out = np.empty(n, dtype=np.float64)
     tri_out = np.empty(n, dtype=np.int32)
     u_out = np.empty(n, dtype=np.float64)
     v_out = np.empty(n, dtype=np.float64)
     for r in range(n):
-        if brute:
+        if located:
+            t, tri, u, v = closest_hit_located(polygons, NO_FAN, grid, loc, origins[r],
+                                               directions[r], tmin[r], tmax[r])
+        elif brute:
             t, tri, u, v = closest_hit_brute_one(grid, origins[r], directions[r], tmin[r], tmax[r])
         else:
             t, tri, u, v = closest_hit_one(grid, origins[r], directions[r], tmin[r], tmax[r])
@@ -753,21 +758,8 @@ def _rays(origins, directions, tmin, tmax):
     return o, d, lo, hi
 
 
-@jit
-def _located_batch(polygons, grid, loc, origins, directions, tmin, tmax):
-    n = origins.shape[0]
-    t_out = np.empty(n, dtype=np.float64)
-    tri_out = np.empty(n, dtype=np.int32)
-    u_out = np.empty(n, dtype=np.float64)
-    v_out = np.empty(n, dtype=np.float64)
-    for r in range(n):
-        t, tri, u, v = closest_hit_located(polygons, NO_FAN, grid, loc, origins[r],
-                                           directions[r], tmin[r], tmax[r])
-        t_out[r] = t
-        tri_out[r] = tri
-        u_out[r] = u
-        v_out[r] = v
-    return t_out, tri_out, u_out, v_out
+#: The locator of no triangle (the batch kernel's argument when it walks).
+_NO_LOC = np.zeros((0, 13))
 
 
 def closest_hit_located_batch(polygons: Grid, loc: np.ndarray, grid: Grid, origins, directions,
@@ -775,7 +767,8 @@ def closest_hit_located_batch(polygons: Grid, loc: np.ndarray, grid: Grid, origi
     """:func:`closest_hit` of ``grid``'s triangles for a batch of rays, each found through
     ``polygons`` and located among them (:func:`closest_hit_located`; ``loc``:
     :func:`locator` of ``grid.triangles``)."""
-    return _located_batch(polygons, grid, loc, *_rays(origins, directions, tmin, tmax))
+    return _closest_batch(grid, *_rays(origins, directions, tmin, tmax), False, polygons,
+                          np.ascontiguousarray(loc, dtype=np.float64), True)
 
 
 def closest_hit(grid: Grid, origins, directions, tmin, tmax):
@@ -789,7 +782,8 @@ def closest_hit(grid: Grid, origins, directions, tmin, tmax):
     ``P = (1 - u - v) V0 + u V1 + v V2``; a hit within ``eps`` outside an edge has a
     barycentric slightly below 0 (by at most ``eps`` over the triangle's height there).
     """
-    return _closest_batch(grid, *_rays(origins, directions, tmin, tmax), False)
+    return _closest_batch(grid, *_rays(origins, directions, tmin, tmax), False, grid, _NO_LOC,
+                          False)
 
 
 def any_hit(grid: Grid, origins, directions, tmin, tmax):
@@ -799,7 +793,8 @@ def any_hit(grid: Grid, origins, directions, tmin, tmax):
 
 def closest_hit_brute(grid: Grid, origins, directions, tmin, tmax):
     """:func:`closest_hit` by testing every triangle (reference; ties go to the lowest id)."""
-    return _closest_batch(grid, *_rays(origins, directions, tmin, tmax), True)
+    return _closest_batch(grid, *_rays(origins, directions, tmin, tmax), True, grid, _NO_LOC,
+                          False)
 
 
 def any_hit_brute(grid: Grid, origins, directions, tmin, tmax):
