@@ -357,9 +357,9 @@ def _closest(ctx: RenderContext, origins: np.ndarray, directions: np.ndarray):
 #: instead of walking the elements' grid (:func:`for_view` sets the context's locator). The
 #: same hits to round-off but where two one-sided faces coincide, back to back: the ray then
 #: sees the one facing it, as the item buffers do, where the walk took whichever round-off
-#: favoured (a black speck for a face seen from behind). Measured (``bench_perpixel``):
-#: the Cornell box's gather 1.18 → 0.87 s, the converted office's 16.3 → 11.8 s (view of
-#: 12,915 vertices, 2 threads). ``False`` is the benchmark's reference arm.
+#: favoured (a black speck for a face seen from behind). Measured (``bench_hits``, 256 × 256,
+#: 2 threads): the Cornell box's gather 0.93 → 0.67 s and tiles 0.45 → 0.36 s, the converted
+#: office's gather 10.23 → 8.08 s. ``False`` is the benchmark's reference arm.
 POLYGON_HITS = True
 
 
@@ -1133,7 +1133,8 @@ def gather_batch(n: int, executor=None) -> int:
 #: whether more than :data:`GATHER_ALL` were found.
 NEAR_PIECE = 16_384
 
-#: Junction vertices per ``gather-…`` task (~0.05–0.1 s each: 576 rays a vertex).
+#: Junction vertices per ``gather-…`` task at least (~0.05–0.1 s each: 576 rays a vertex;
+#: :func:`gather_batch`).
 GATHER_BATCH = 128
 
 

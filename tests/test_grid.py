@@ -598,13 +598,60 @@ def test_a_hit_found_among_the_polygons_is_located_on_the_elements_triangle(rng)
     on_squares = np.abs(p[:, 2] - 0.5) < 1e-12
     on_squares &= (p[:, :2] > 0.2 - 1e-12).all(axis=1) & (p[:, :2] < 0.6 + 1e-12).all(axis=1)
     facing = np.einsum("ij,ij->i", normal[tri1], d) < 0
-    assert on_squares.sum() > 300 and facing[on_squares].all()
+    q0 = o + G.closest_hit(polygons, o, d, 0.0, np.inf)[0][:, None] * d
+    through = np.abs(q0[:, 2] - 0.25) < 1e-12          # met the uncovered square first
+    assert on_squares.sum() > 300 and facing[on_squares & ~through].all()
     assert (tri1 == tri0)[~on_squares].mean() > 0.95       # but for shared edges
     walk_facing = np.einsum("ij,ij->i", normal[tri0], d) < 0
     assert not walk_facing[on_squares].all()               # the walk's coin: a test that fails
-    # the square no element covers is passed through (to the same t as the walk's, above)
+    # the square no element covers: the elements' walk answers, bit for bit
     tp = G.closest_hit(polygons, o, d, 0.0, np.inf)[0]
     q = o + tp[:, None] * d
     uncovered = (np.abs(q[:, 2] - 0.25) < 1e-12) & (q[:, 0] > 0.2) & (q[:, 0] < 0.4) \
         & (q[:, 1] > 0.6) & (q[:, 1] < 0.8)
     assert uncovered.sum() > 50 and (t1[uncovered] > tp[uncovered] + 1e-6).all()
+    np.testing.assert_array_equal(tri1[uncovered], tri0[uncovered])
+    np.testing.assert_array_equal(t1[uncovered], t0[uncovered])
+
+
+@pytest.mark.parametrize("shift", [0.0, 3e7])
+def test_a_twisted_quad_far_from_the_origin_is_hit_where_its_elements_are(rng, shift):
+    # a quad twisted within the loader's planarity tolerance (PLANAR_QUAD of the diagonal):
+    # the elements subdivide it bilinearly, the polygons split it along a diagonal, so the
+    # two surfaces part by up to the twist; and the scene far from the origin, where the
+    # coordinates' round-off grows. Every ray towards the quad meets it, never the wall
+    # behind, at the walk's t; a degenerate element triangle (zero area, lowest id) in
+    # every cell is never the one located
+    from daskrad.scene.corners import split_quads
+    from daskrad.testing import grid as quad_grid
+    from daskrad.testing import merge
+
+    twist = 0.9e-9 * np.sqrt(2.0)
+    corners = np.array([[0, 0, 0], [1, 0, twist], [1, 1, 0], [0, 1, twist]]) + shift
+    n = 8
+    s_ = np.linspace(0.0, 1.0, n + 1)
+    a, b = np.meshgrid(s_, s_, indexing="ij")
+    bil = ((1 - a) * (1 - b))[..., None] * corners[0] + (a * (1 - b))[..., None] * corners[1] \
+        + (a * b)[..., None] * corners[2] + ((1 - a) * b)[..., None] * corners[3]
+    _, quads = quad_grid([0, 0, 0], [1, 0, 0], [0, 1, 0], n)
+    wall_v, wall_q = quad_grid(np.array([-1.0, -1.0, -1.0]) + shift, [3, 0, 0], [0, 3, 0], 1)
+    vertices, elems = merge((bil.reshape(-1, 3), quads), (wall_v, wall_q))
+    tri, owner = split_quads(elems)
+    degenerate = np.repeat(corners[:1], 3, axis=0)[None]
+    element_tris = np.concatenate([degenerate, vertices[tri]])
+    poly_tri, _ = split_quads(np.array([[0, 1, 2, 3]]))
+    on_wall = np.concatenate([[False], owner == len(elems) - 1])
+    wall_tris = element_tris[on_wall]
+    polygons = G.build_grid(np.concatenate([corners[poly_tri], wall_tris]))
+    elements = G.build_grid(element_tris)
+    loc = G.locator(element_tris)
+    assert np.isinf(loc[0, 12])
+    m = 5000
+    o = np.column_stack([rng.uniform(0, 1, (m, 2)), np.full(m, 1.0)]) + shift
+    target = np.column_stack([rng.uniform(0, 1, (m, 2)), np.zeros(m)]) + shift
+    d = target - o
+    t0, tri0, _, _ = G.closest_hit(elements, o, d, 0.0, np.inf)
+    t1, tri1, _, _ = G.closest_hit_located_batch(polygons, loc, elements, o, d, 0.0, np.inf)
+    assert (tri0 > 0).all() and not on_wall[tri0].any()
+    assert (tri1 > 0).all() and not on_wall[tri1].any()
+    np.testing.assert_allclose(t1, t0, rtol=0, atol=1e-8)

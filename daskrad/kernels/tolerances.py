@@ -38,10 +38,12 @@ FAN_MARGIN = 1000.0
 
 #: A closest hit found among the scene's polygons is located among the elements' triangles
 #: (:func:`daskrad.kernels.grid.closest_hit_located`) in the planes within this many edge
-#: tolerances (``RAY_EPS · diag``) of the hit point: far beyond the round-off of a point
-#: computed on one plane and tested against a copy of it, far below the gap between the two
-#: sides of a two-sided surface (``TWO_SIDED_GAP``, 10⁷ edge tolerances).
-LOCATE_PLANE = 1000.0
+#: tolerances (``RAY_EPS · diag``) of the hit point, plus the round-off of its coordinates
+#: (``COORD_ROUND``): ten times a quad's allowed twist (``PLANAR_QUAD · diag``: the elements
+#: subdivide it bilinearly, the polygons split it along a diagonal), far below the gap between
+#: the two sides of a two-sided surface (``TWO_SIDED_GAP``, 10⁷ edge tolerances). A point no
+#: element holds within these is found by the walk of the elements instead.
+LOCATE_PLANE = 10_000.0
 #: ... and whose barycentric coordinates reach this far below 0 (a point on an edge two
 #: triangles share lies in both, up to round-off).
 LOCATE_BARY = 1e-9
