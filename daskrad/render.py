@@ -27,6 +27,7 @@ from daskrad.direct import DirectLight, Lights
 from daskrad.errors import SceneError
 from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_TRACE, LIGHT_VISIBLE
 from daskrad.kernels.grid import (
+    NO_LOCATOR,
     Grid,
     build_grid,
     closest_hit,
@@ -345,10 +346,16 @@ def _closest(ctx: RenderContext, origins: np.ndarray, directions: np.ndarray):
     through the polygons where the context has its locator (:data:`POLYGON_HITS`)."""
     n = len(origins)
     tmin, tmax = np.zeros(n), np.full(n, np.inf)
-    if ctx.occluders is not None and ctx.locator is not None:
+    if _hit_polygons(ctx) is not None:
         return closest_hit_located_batch(ctx.occluders, ctx.locator, ctx.grid, origins,
                                          directions, tmin, tmax)
     return closest_hit(ctx.grid, origins, directions, tmin, tmax)
+
+
+def _hit_polygons(ctx: RenderContext) -> Grid | None:
+    """The polygons' grid the view's hits are found in (the context has its locator,
+    :func:`with_locator`), else None: the element grid is walked."""
+    return ctx.occluders if ctx.locator is not None else None
 
 
 #: The primary rays, mirror rays and the junction gather's rays find their hits among the
@@ -1221,7 +1228,7 @@ def gather_vertices(gctx: GatherContext, start: int, stop: int) -> GatherOperato
         int(gctx.n_vertices), gctx.points[start:stop], gctx.normals[start:stop],
         gctx.seeds[start:stop], float(gctx.offset), int(gctx.side),
         gctx.polygons if located else gctx.grid,
-        gctx.locator if located else np.zeros((0, 13)), located))
+        gctx.locator if located else NO_LOCATOR, located))
 
 
 def seen_elements(ctx: RenderContext) -> np.ndarray:
@@ -1316,7 +1323,8 @@ def _gathered(ctx: RenderContext, j: Junctions, vertices: np.ndarray, n: int,
 
     # through the polygons with the view's hits (the same surfaces: the same answers on the
     # Cornell box at 62,123 vertices, 0.38 -> 0.15 s)
-    grid = ctx.occluders if ctx.occluders is not None and ctx.locator is not None else ctx.grid
+    polygons = _hit_polygons(ctx)
+    grid = polygons if polygons is not None else ctx.grid
     beside = np.zeros(n, bool)
     found = 0
     for a in range(0, len(vertices), NEAR_PIECE):
@@ -1405,14 +1413,14 @@ def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
     idx = np.flatnonzero(gathered)
     if len(idx) == 0:
         return delta
-    located = ctx.occluders is not None and ctx.locator is not None
+    polygons = _hit_polygons(ctx)
     gctx = GatherContext(grid=ctx.grid, tri_verts=ctx.tri_verts, tri_element=ctx.tri_element,
                          elem_normal=ctx.elem_normal, exclude=j.exclude, n_vertices=V,
                          points=np.ascontiguousarray(j.points[idx]),
                          normals=np.ascontiguousarray(j.normals[idx]),
                          seeds=idx.astype(np.int64), offset=j.offset, side=GATHER_SIDE,
-                         polygons=ctx.occluders if located else None,
-                         locator=ctx.locator if located else None)
+                         polygons=polygons,
+                         locator=ctx.locator if polygons is not None else None)
     ranges = direct.batches(0, len(idx), gather_batch(len(idx), executor))
     parts = (executor.gather(gctx, ranges) if executor is not None
              else [gather_vertices(gctx, a, b) for a, b in ranges])

@@ -12,7 +12,7 @@ import pytest
 
 from daskrad.formfactor import element_grid
 from daskrad.kernels.gather import apply_operator, gather_operator
-from daskrad.kernels.grid import build_grid, locator
+from daskrad.kernels.grid import NO_LOCATOR, build_grid, locator
 from daskrad.kernels.lambert import lambert_polygon
 from daskrad.scene.corners import split_quads
 from daskrad.testing import closed_box
@@ -44,7 +44,7 @@ def _polygons(located, grid):
     """``(polygons, locator)`` of the unit box's faces for :func:`gather_operator` (the
     element ``grid`` and no locator when not ``located``)."""
     if not located:
-        return grid, np.zeros((0, 13))
+        return grid, NO_LOCATOR
     faces, quads = closed_box(1)
     tri, _ = split_quads(quads)
     return build_grid(faces[tri]), locator(grid.triangles)

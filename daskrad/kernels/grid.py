@@ -614,9 +614,9 @@ def closest_hit_located(polygons, fan, grid, loc, o, d, tmin, tmax):
     pz = o[2] + tp * d[2]
     origin, cell, dims = grid.origin, grid.cell, grid.dims
     nx, ny, nz = dims[0], dims[1], dims[2]
-    i = max(0, min(nx - 1, int(np.floor((px - origin[0]) / cell[0]))))
-    j = max(0, min(ny - 1, int(np.floor((py - origin[1]) / cell[1]))))
-    k = max(0, min(nz - 1, int(np.floor((pz - origin[2]) / cell[2]))))
+    i = _cell_range(px, px, origin[0], cell[0], nx)[0]
+    j = _cell_range(py, py, origin[1], cell[1], ny)[0]
+    k = _cell_range(pz, pz, origin[2], cell[2], nz)[0]
     c = (k * ny + j) * nx + i
     ptol = LOCATE_PLANE * grid.eps + COORD_ROUND * (abs(px) + abs(py) + abs(pz))
     away, away_u, away_v = -1, 0.0, 0.0
@@ -750,8 +750,8 @@ def _rays(origins, directions, tmin, tmax):
     return o, d, lo, hi
 
 
-#: The locator of no triangle (the batch kernel's argument when it walks).
-_NO_LOC = np.zeros((0, 13))
+#: The locator of no triangle (the kernels' argument when they walk instead).
+NO_LOCATOR = np.zeros((0, 13))
 
 
 @jit
@@ -782,7 +782,7 @@ def closest_hit(grid: Grid, origins, directions, tmin, tmax):
     ``P = (1 - u - v) V0 + u V1 + v V2``; a hit within ``eps`` outside an edge has a
     barycentric slightly below 0 (by at most ``eps`` over the triangle's height there).
     """
-    return _closest_batch(grid, *_rays(origins, directions, tmin, tmax), False, grid, _NO_LOC,
+    return _closest_batch(grid, *_rays(origins, directions, tmin, tmax), False, grid, NO_LOCATOR,
                           False)
 
 
@@ -793,7 +793,7 @@ def any_hit(grid: Grid, origins, directions, tmin, tmax):
 
 def closest_hit_brute(grid: Grid, origins, directions, tmin, tmax):
     """:func:`closest_hit` by testing every triangle (reference; ties go to the lowest id)."""
-    return _closest_batch(grid, *_rays(origins, directions, tmin, tmax), True, grid, _NO_LOC,
+    return _closest_batch(grid, *_rays(origins, directions, tmin, tmax), True, grid, NO_LOCATOR,
                           False)
 
 
