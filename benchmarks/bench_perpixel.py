@@ -74,6 +74,7 @@ def _gather_hits(grid, points, normals, seeds, off, side, fanned):
     t_out = np.empty(n * ss)
     tri_out = np.empty(n * ss, np.int64)
     fan = new_fan(grid)
+    d = np.empty(3)
     for i in range(n):
         nrm = normals[i]
         t, s = tangent_frame(nrm)
@@ -82,7 +83,7 @@ def _gather_hits(grid, points, normals, seeds, off, side, fanned):
         for k in range(ss):
             u = ((k % side) + hash01(seeds[i], 2 * k)) / side
             v = ((k // side) + hash01(seeds[i], 2 * k + 1)) / side
-            d = cosine_direction(nrm, t, s, u, v)
+            cosine_direction(d, nrm, t, s, u, v)
             if fanned:
                 th, tri, _, _ = closest_hit_fan(grid, fan, o, d, off, np.inf)
             else:

@@ -62,10 +62,11 @@ def hash01(seed, k):
 
 
 @jit
-def _sample_polygon(corners, count, u, v):
-    """A point of the polygon for ``(u, v) ∈ [0,1)²``: bilinear on a quad, the square-root
-    warp on a triangle (both uniform in area for a parallelogram / any triangle)."""
-    out = np.empty(3)
+def _sample_polygon(corners, count, u, v, out):
+    """A point of the polygon for ``(u, v) ∈ [0,1)²``, written to ``out (3,)``: bilinear on a
+    quad, the square-root warp on a triangle (both uniform in area for a parallelogram / any
+    triangle). Into a buffer: a new array per shadow ray cost more than the ray itself where
+    the blocker cache settles it at its first triangle."""
     if count == 4:
         for k in range(3):
             out[k] = ((1 - u) * (1 - v) * corners[0, k] + u * (1 - v) * corners[1, k]
@@ -75,7 +76,6 @@ def _sample_polygon(corners, count, u, v):
         for k in range(3):
             out[k] = ((1.0 - su) * corners[0, k] + su * (1.0 - v) * corners[1, k]
                       + su * v * corners[2, k])
-    return out
 
 
 #: Strata per side from which the per-pixel pass probes an area light (``probe``): with fewer
@@ -84,12 +84,13 @@ PROBE_SIDE = 3
 
 
 @jit
-def _stratum_point(corners, count, seed, m, ss, samples, k):
-    """The jittered point of stratum ``k`` (of ``samples²``) of area light ``m``."""
+def _stratum_point(corners, count, seed, m, ss, samples, k, out):
+    """The jittered point of stratum ``k`` (of ``samples²``) of area light ``m``, written to
+    ``out (3,)``."""
     inv_s = 1.0 / samples
     u = ((k % samples) + hash01(seed, 2 * (m * ss + k))) * inv_s
     v = ((k // samples) + hash01(seed, 2 * (m * ss + k) + 1)) * inv_s
-    return _sample_polygon(corners, count, u, v)
+    _sample_polygon(corners, count, u, v, out)
 
 
 @jit
@@ -220,6 +221,7 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
         o[k] = pa[k] + off * n[k]
     aim_fan(fan, grid, o, n, off)
     d = np.empty(3)
+    q = np.empty(3)       # a light's sample point
     # ---- point lights
     for li in range(pl_pos.shape[0]):
         # cos θ / r² from the surface point itself (not the offset origin): exact I cosθ/r²
@@ -291,7 +293,7 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
             blocked = 0
             for c in range(4):
                 k = _corner_stratum(c, samples)
-                q = _stratum_point(em_corners[m], cnt, seed, m, ss, samples, k)
+                _stratum_point(em_corners[m], cnt, seed, m, ss, samples, k, q)
                 seen[c] = -1
                 if _kernel(p, n, en, q) > 0.0:
                     seen[c] = 1 if _unblocked(grid, fan, o, q, off, d, m) else 0
@@ -304,7 +306,7 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
         wsum = 0.0
         wvis = 0.0
         for k in range(ss):
-            q = _stratum_point(em_corners[m], cnt, seed, m, ss, samples, k)
+            _stratum_point(em_corners[m], cnt, seed, m, ss, samples, k, q)
             w = _kernel(p, n, en, q)
             if w <= 0.0:
                 continue

@@ -22,12 +22,17 @@ from daskrad.kernels.pathtrace import tangent_frame
 
 
 @jit
-def cosine_direction(n, t, s, u, v):
-    """Cosine-distributed direction about ``n`` for ``(u, v) ∈ [0, 1)²``."""
+def cosine_direction(d, n, t, s, u, v):
+    """The cosine-distributed direction about ``n`` for ``(u, v) ∈ [0, 1)²``, written to
+    ``d (3,)`` (``t, s``: tangents completing ``n``). Into a buffer, from scalars: the array
+    expression made five arrays a ray, 10 % of the Cornell box's gather (the same bits)."""
     r = math.sqrt(u)
     phi = 2.0 * math.pi * v
     z = math.sqrt(max(0.0, 1.0 - u))
-    return (r * math.cos(phi)) * t + (r * math.sin(phi)) * s + z * n
+    a = r * math.cos(phi)
+    b = r * math.sin(phi)
+    for x in range(3):
+        d[x] = a * t[x] + b * s[x] + z * n[x]
 
 
 @jit_parallel
@@ -41,8 +46,9 @@ def near_surface(grid, points, normals, off, reach, side):
         nrm = normals[i]
         t, s = tangent_frame(nrm)
         o = points[i] + off * nrm
+        d = np.empty(3)
         for k in range(side * side):
-            d = cosine_direction(nrm, t, s, ((k % side) + 0.5) / side, ((k // side) + 0.5) / side)
+            cosine_direction(d, nrm, t, s, ((k % side) + 0.5) / side, ((k // side) + 0.5) / side)
             if any_hit_one(grid, o, d, off, reach):
                 out[i] = True
                 break
@@ -97,6 +103,7 @@ def gather_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_v
     walked = polygons if located else grid
     fan = new_fan(walked)   # every ray of a point rises above its tangent plane
     nnz = 0
+    d = np.empty(3)
     for i in range(n):
         nrm = normals[i]
         t, s = tangent_frame(nrm)
@@ -106,7 +113,7 @@ def gather_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_v
         for k in range(ss):
             u = ((k % side) + hash01(seeds[i], 2 * k)) / side
             v = ((k // side) + hash01(seeds[i], 2 * k + 1)) / side
-            d = cosine_direction(nrm, t, s, u, v)
+            cosine_direction(d, nrm, t, s, u, v)
             if located:
                 th, tri, bu, bv = closest_hit_located(polygons, fan, grid, loc, o, d, off,
                                                       np.inf)
