@@ -321,3 +321,40 @@ def test_the_solver_checks_its_geometry_once_when_its_context_is_made():
     assert rows.shape == (1, h.n_elements)
     with pytest.raises(SceneError, match="finite"):       # the block has ended
         formfactor.analytic_rows(point, normal, bad.vertices, bad.elem_verts)
+
+
+@pytest.mark.parametrize("sampled", [False, True])
+def test_the_near_field_kernel_follows_reciprocity_visibility_and_the_rows_share(sampled):
+    # daskrad.kernels.nearfield.near_field against its formulas in numpy: the near receivers
+    # (F > 0, centroid within NEAR_FIELD radii, another polygon) get F_ji · A_j / A_i ·
+    # visible_j, visible_j the raster's factor over Lambert's unoccluded one from the same
+    # points (weighted means of several, a point behind the receiver adding 0), rescaled to
+    # the share they had; every other factor is left as it was. Round-off apart: 1e-12.
+    h, ctx = _context(sc.degenerate_scenes()["non-manifold edge (fin)"])
+    checked = 0
+    for p in range(0, h.n_patches, 5):
+        points, weights = shooting.shooter_points(ctx, p)
+        if not sampled:
+            points, weights = shooting.one_point(points, weights)
+        normals = np.repeat(h.patch_normal[p][None], len(points), axis=0)
+        rows = formfactor.shooter_rows(points, normals, h.vertices, h.elem_verts,
+                                       method="hemisphere", resolution=64)
+        raw = weights @ rows
+        ids = np.flatnonzero(
+            (raw > 0)
+            & (np.linalg.norm(h.elem_centroid - h.patch_centroid[p], axis=1)
+               < shooting.NEAR_FIELD * ctx.patch_radius[p])
+            & (h.elem_polygon != h.patch_polygon[p]))
+        unoccluded = weights @ np.maximum(formfactor.analytic_rows(
+            points, normals, h.vertices, h.elem_verts[ids]), 0.0)
+        visible = np.where(unoccluded > 0, np.clip(raw[ids] / np.where(
+            unoccluded > 0, unoccluded, 1.0), 0.0, 1.0), 1.0)
+        exact = (shooting.receiver_average(ctx, p, ids) * h.elem_area[ids]
+                 / h.patch_area[p] * visible)
+        expected = raw.copy()
+        if exact.sum() > 0:
+            expected[ids] = exact * raw[ids].sum() / exact.sum()
+        got = shooting.shoot_row(ctx, p, sampled=sampled)
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
+        checked += len(ids) > 0 and not np.allclose(expected, raw, rtol=0, atol=1e-9)
+    assert checked >= 3                 # the correction moved rows, and was held to them

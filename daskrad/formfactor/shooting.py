@@ -47,6 +47,7 @@ from daskrad import formfactor, tolerances
 from daskrad.kernels.blockers import UNKNOWN, nearest_blocker
 from daskrad.kernels.geometry import orthonormal_basis, scene_diagonal
 from daskrad.kernels.grid import Grid, closest_hit
+from daskrad.kernels.nearfield import near_field, receiver_factors
 from daskrad.mesh.types import Hierarchy
 from daskrad.scene.corners import QUAD_HALVES, real_corners, repeat_third
 
@@ -312,28 +313,17 @@ def shoot_row(ctx: ShootContext, p: int, sampled: bool = True) -> np.ndarray:
                                    method=ctx.method, resolution=ctx.resolution,
                                    grid=ctx.grid, **ctx.options)
     row = rows[0] if len(points) == 1 else _average(rows, weights)
-    ids = np.flatnonzero(row > 0)       # a near receiver has a factor: look at those only
-    offset = ctx.elem_centroid[ids] - ctx.patch_centroid[p]
-    ids = ids[(np.einsum("ij,ij->i", offset, offset) < (NEAR_FIELD * ctx.patch_radius[p]) ** 2)
-              & (ctx.elem_polygon[ids] != ctx.patch_polygon[p])]
-    if not len(ids):
-        return row
-    # the method's own visibility of each near receiver: its factor over the unoccluded one
-    # from the same points (won/covered for the default hemisphere method, exactly, at one
-    # point). Over several points, the ratio of the averages: a point that cannot see the
-    # receiver at all (behind its plane) adds nothing to either, instead of counting as visible
-    unoccluded = formfactor.analytic_rows(points, normals, ctx.vertices, ctx.elem_verts[ids])
-    if len(points) > 1:
-        unoccluded = _average(np.maximum(unoccluded, 0.0), weights)[None]
-    visible = np.clip(row[ids] / np.where(unoccluded[0] > 0, unoccluded[0], np.inf), 0.0, 1.0)
-    visible[unoccluded[0] <= 0] = 1.0
-    # F_ji from each near receiver to the whole shooter polygon (Lambert, exact in the
-    # shooter's extent, averaged over the receiver), then F_ij = F_ji · A_j / A_i by reciprocity
-    F_ji = receiver_average(ctx, p, ids)
-    exact = F_ji * ctx.elem_area[ids] / ctx.patch_area[p] * visible
-    share = row[ids].sum()
-    if exact.sum() > 0:
-        row[ids] = exact * (share / exact.sum())
+    # near receivers: F_ij by reciprocity from F_ji, the exact factor from each to the whole
+    # shooter polygon (Lambert, averaged over the receiver where it is close), times the
+    # method's own visibility of it (its factor over the unoccluded one from the same points:
+    # won/covered for the default hemisphere method, exactly, at one point), rescaled to the
+    # share of the row they had (:func:`daskrad.kernels.nearfield.near_field`)
+    near_field(row, points, np.ascontiguousarray(weights, dtype=np.float64), ctx.vertices,
+               ctx.elem_verts, ctx.elem_centroid, ctx.elem_normal, ctx.elem_area,
+               ctx.elem_polygon, ctx.patch_verts[p], ctx.patch_centroid[p],
+               ctx.patch_normal[p], float(ctx.patch_radius[p]), float(ctx.patch_area[p]),
+               int(ctx.patch_polygon[p]), NEAR_FIELD * float(ctx.patch_radius[p]), CLOSE,
+               _STRATA)
     return row
 
 
@@ -347,6 +337,10 @@ def strata(s: int) -> np.ndarray:
     return np.column_stack([1.0 - a - b, a, b])
 
 
+#: The barycentric points of :data:`STRATA` (:func:`receiver_average`).
+_STRATA = strata(STRATA)
+
+
 def receiver_average(ctx: ShootContext, p: int, ids: np.ndarray) -> np.ndarray:
     """``(k,) float64``: ``F_ji`` from each receiver element ``ids`` to the whole patch ``p``
     (Lambert's contour integral, no occlusion), averaged over the receiver's area.
@@ -355,33 +349,13 @@ def receiver_average(ctx: ShootContext, p: int, ids: np.ndarray) -> np.ndarray:
     for a receiver within ``CLOSE`` of its own sizes of the shooter (sharing an edge or a
     corner with it, or a small gap) ``F(x → i)`` varies over the receiver as fast as the
     distance does, so the integral is taken over ``STRATA²`` stratified points of each of the
-    receiver's triangles (a quad is two), area-weighted.
+    receiver's triangles (a quad is two), area-weighted
+    (:func:`daskrad.kernels.nearfield.receiver_factors`, which :func:`shoot_row` runs).
     """
-    c = ctx.elem_centroid[ids]
-    nrm = ctx.elem_normal[ids]
-    shooter = ctx.patch_verts[p:p + 1]
-    rel = c - ctx.patch_centroid[p]
-    # a lower bound of the distance from the centroid to the shooter polygon
-    dist = np.maximum(np.abs(rel @ ctx.patch_normal[p]),
-                      np.linalg.norm(rel, axis=1) - ctx.patch_radius[p])
-    close = dist < CLOSE * np.sqrt(ctx.elem_area[ids])
-    F = np.empty(len(ids))
-    if (~close).any():
-        F[~close] = formfactor.analytic_rows(c[~close], nrm[~close], ctx.vertices,
-                                             shooter)[:, 0]
-    if close.any():
-        ev = ctx.elem_verts[ids[close]]
-        corners = ctx.vertices[repeat_third(ev)]          # (m, 4, 3); a triangle's second
-        halves = corners[:, QUAD_HALVES]                  # (m, 2, 3, 3) half is empty
-        area = 0.5 * np.linalg.norm(np.cross(halves[:, :, 1] - halves[:, :, 0],
-                                             halves[:, :, 2] - halves[:, :, 0]), axis=2)
-        bary = strata(STRATA)
-        pts = np.einsum("kc,mhcx->mhkx", bary, halves).reshape(-1, 3)
-        k = 2 * len(bary)
-        f = formfactor.analytic_rows(pts, np.repeat(nrm[close], k, axis=0), ctx.vertices,
-                                     shooter)[:, 0].reshape(-1, 2, len(bary))
-        F[close] = (f.mean(axis=2) * area).sum(axis=1) / area.sum(axis=1)
-    return F
+    return receiver_factors(ctx.vertices, ctx.elem_verts, ctx.elem_centroid, ctx.elem_normal,
+                            ctx.elem_area, np.asarray(ids, dtype=np.int64), ctx.patch_verts[p],
+                            ctx.patch_centroid[p], ctx.patch_normal[p],
+                            float(ctx.patch_radius[p]), CLOSE, _STRATA)
 
 
 #: Bytes of finished rows a process keeps for re-shots when nothing sizes it
