@@ -323,16 +323,61 @@ def test_the_solver_checks_its_geometry_once_when_its_context_is_made():
         formfactor.analytic_rows(point, normal, bad.vertices, bad.elem_verts)
 
 
+def _receiver_average_numpy(h, ctx, p, ids):
+    """``F_ji`` from receivers ``ids`` to the whole patch ``p`` in numpy (the formula
+    :func:`daskrad.kernels.nearfield.receiver_factors` computes): Lambert at the centroid, or
+    for a receiver within ``CLOSE`` of its size the area-weighted mean over ``STRATA²``
+    points of each triangle."""
+    from daskrad.scene.corners import QUAD_HALVES, repeat_third
+
+    c, nrm = h.elem_centroid[ids], h.elem_normal[ids]
+    shooter = h.patch_verts[p:p + 1]
+    rel = c - h.patch_centroid[p]
+    dist = np.maximum(np.abs(rel @ h.patch_normal[p]),
+                      np.linalg.norm(rel, axis=1) - ctx.patch_radius[p])
+    close = dist < shooting.CLOSE * np.sqrt(h.elem_area[ids])
+    F = formfactor.analytic_rows(c, nrm, h.vertices, shooter)[:, 0]
+    if close.any():
+        halves = h.vertices[repeat_third(h.elem_verts[ids[close]])][:, QUAD_HALVES]
+        area = 0.5 * np.linalg.norm(np.cross(halves[:, :, 1] - halves[:, :, 0],
+                                             halves[:, :, 2] - halves[:, :, 0]), axis=2)
+        bary = shooting.strata(shooting.STRATA)
+        pts = np.einsum("kc,mhcx->mhkx", bary, halves).reshape(-1, 3)
+        f = formfactor.analytic_rows(pts, np.repeat(nrm[close], 2 * len(bary), axis=0),
+                                     h.vertices, shooter)[:, 0].reshape(-1, 2, len(bary))
+        F[close] = (f.mean(axis=2) * area).sum(axis=1) / area.sum(axis=1)
+    return F
+
+
+def _near_field_cases():
+    from daskrad.mesh import default_sizes
+    from daskrad.scene import load_scene
+    from daskrad.testing.stress import random_soup
+    from tests.helpers import CORNELL
+
+    cornell = load_scene(CORNELL)
+    patch, element = default_sizes(cornell)
+    return {"fin": (sc.degenerate_scenes()["non-manifold edge (fin)"], 0.25, 0.125, 5),
+            # blocks standing on the floor: sample points behind a near face's plane
+            "cornell": (cornell, patch, element, 4),
+            "triangle soup": (random_soup(np.random.default_rng(7), 40), 0.2, 0.1, 1)}
+
+
 @pytest.mark.parametrize("sampled", [False, True])
-def test_the_near_field_kernel_follows_reciprocity_visibility_and_the_rows_share(sampled):
+@pytest.mark.parametrize("case", ["fin", "cornell", "triangle soup"])
+def test_the_near_field_kernel_follows_reciprocity_visibility_and_the_rows_share(case, sampled):
     # daskrad.kernels.nearfield.near_field against its formulas in numpy: the near receivers
     # (F > 0, centroid within NEAR_FIELD radii, another polygon) get F_ji · A_j / A_i ·
-    # visible_j, visible_j the raster's factor over Lambert's unoccluded one from the same
-    # points (weighted means of several, a point behind the receiver adding 0), rescaled to
-    # the share they had; every other factor is left as it was. Round-off apart: 1e-12.
-    h, ctx = _context(sc.degenerate_scenes()["non-manifold edge (fin)"])
-    checked = 0
-    for p in range(0, h.n_patches, 5):
+    # visible_j, F_ji by Lambert to the whole patch (averaged over a close receiver), visible_j
+    # the raster's factor over Lambert's unoccluded one from the same points (weighted means of
+    # several, a point behind the receiver adding 0), rescaled to the share they had; every
+    # other factor is left as it was. Round-off apart (the kernel sums in order, numpy
+    # pairwise; numpy renormalises the normals): 1e-12.
+    scene, patch, element, step = _near_field_cases()[case]
+    h = build_hierarchy(scene, patch, element)
+    ctx = shooting.make_context(h, "hemisphere", 64)
+    checked = behind = 0
+    for p in range(0, h.n_patches, step):
         points, weights = shooting.shooter_points(ctx, p)
         if not sampled:
             points, weights = shooting.one_point(points, weights)
@@ -345,11 +390,12 @@ def test_the_near_field_kernel_follows_reciprocity_visibility_and_the_rows_share
             & (np.linalg.norm(h.elem_centroid - h.patch_centroid[p], axis=1)
                < shooting.NEAR_FIELD * ctx.patch_radius[p])
             & (h.elem_polygon != h.patch_polygon[p]))
-        unoccluded = weights @ np.maximum(formfactor.analytic_rows(
-            points, normals, h.vertices, h.elem_verts[ids]), 0.0)
+        each = formfactor.analytic_rows(points, normals, h.vertices, h.elem_verts[ids])
+        behind += int((each <= 0).sum())
+        unoccluded = weights @ np.maximum(each, 0.0)
         visible = np.where(unoccluded > 0, np.clip(raw[ids] / np.where(
             unoccluded > 0, unoccluded, 1.0), 0.0, 1.0), 1.0)
-        exact = (shooting.receiver_average(ctx, p, ids) * h.elem_area[ids]
+        exact = (_receiver_average_numpy(h, ctx, p, ids) * h.elem_area[ids]
                  / h.patch_area[p] * visible)
         expected = raw.copy()
         if exact.sum() > 0:
@@ -358,3 +404,5 @@ def test_the_near_field_kernel_follows_reciprocity_visibility_and_the_rows_share
         np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
         checked += len(ids) > 0 and not np.allclose(expected, raw, rtol=0, atol=1e-9)
     assert checked >= 3                 # the correction moved rows, and was held to them
+    if sampled and case == "cornell":
+        assert behind > 0               # some sample point lay behind a near receiver

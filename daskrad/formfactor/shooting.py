@@ -139,7 +139,7 @@ def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None =
     element of each triangle (the pipeline passes the mesh's own); built here when omitted.
     """
     formfactor.get_method(method)
-    # once: the rows trust both (receiver_average passes the patches as elements)
+    # once: the rows trust both (the near field reads the patches' corners as an element's)
     formfactor.check_geometry(h.vertices, h.elem_verts)
     formfactor.check_geometry(h.vertices, h.patch_verts)
     if grid is None or tri_element is None:

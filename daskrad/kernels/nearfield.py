@@ -10,8 +10,11 @@ fraction the raster measured, and rescales them to the share of the row they had
 shot's power is conserved).
 
 One kernel for what was a dozen numpy operations a row under the GIL (the Cornell box's
-one-point rows: 0.69 of 3.4 ms, ~525 near receivers each), so threads and Dask workers run
-it side by side. Pure: the same bits for a row wherever it is computed.
+one-point rows, ~525 near receivers each, 3.2 → 2.3 ms on one thread), so threads and Dask
+workers run it side by side. Pure: the same bits for a row wherever it is computed. Against
+the numpy formulas it replaces (tests/test_penumbra.py) it differs by round-off only: it sums
+in order where numpy summed pairwise, and takes the element normals as stored where
+``analytic_rows`` renormalised them (1.3e-16 on the Cornell box, 1.8e-14 on a triangle soup).
 """
 
 from __future__ import annotations
@@ -135,6 +138,8 @@ def near_field(row, points, weights, vertices, elem_verts, elem_centroid, elem_n
     positive).
     """
     n_elem = row.shape[0]
+    if not area > 0.0:          # no patch of a mesh; a context made by hand is left as it is
+        return 0
     reach2 = reach * reach
     ids = np.empty(n_elem, np.int64)
     k = 0
