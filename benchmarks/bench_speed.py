@@ -15,7 +15,8 @@ Four tables, one JSON (``benchmarks/results/speed.json``):
    the cold start in an empty numba cache (``NUMBA_CACHE_DIR``): ``daskrad warmup`` (what
    ``make install`` runs), the first run after it and a warm run (the issue's bound: first ≤ 2×
    warm).
-3. **Workers**: a whole converging run (re-shots included) of a scene of ≥ 50k elements with
+3. **Workers**: whole converging runs (re-shots included, ``WORKER_PASSES`` alternated passes,
+   medians) of a scene of ≥ 50k elements with
    ``--workers 0`` (threads), 1 and 2 (LocalCluster start included): the Cornell box with
    7-unit elements by default, or the scenes given with ``--scene PATH`` (e.g. the office
    interiors converted to OBJ, passed by path; never commit those).
@@ -84,6 +85,8 @@ PT_SPP = (16, 64, 256, 1024)
 LARGE_ELEMENT_SIZE = 7.0
 #: The workers table's rows: ``(--workers, --processes)``; 0 is in-process threads, no Dask.
 WORKERS = ((0, False), (1, False), (2, False), (1, True), (2, True))
+#: Passes over the workers table's rows (medians; ``--quick``: one).
+WORKER_PASSES = 3
 #: ``--quick``: the workers table's scene (Cornell box, ~600 elements) and its shot cap.
 QUICK_ELEMENT_SIZE = 60.0
 QUICK_ITERATIONS = 64
@@ -201,19 +204,28 @@ def startup(cold: bool) -> dict:
     return out
 
 
-def workers(scenes: list[Path], element_size: float | None, max_iterations: int | None
-            ) -> list[dict]:
+def workers(scenes: list[Path], element_size: float | None, max_iterations: int | None,
+            passes: int = WORKER_PASSES) -> list[dict]:
     """Whole-run wall time of each scene with --workers 0 (threads, no Dask), 1 and 2 (a
-    LocalCluster of threads) and 1 and 2 with --processes."""
+    LocalCluster of threads) and 1 and 2 with --processes: ``passes`` passes over the kinds,
+    alternated (the machine's load moves between runs of a few seconds), each row the median
+    of its passes (its step times from its median run), its speed-up the median of the
+    passes' ratios to one worker of its kind in the same pass."""
     rows = []
     for scene in scenes:
-        for n, processes in WORKERS:
-            opts = {"workers": n, "processes": processes, "dashboard": "127.0.0.1:0"}
-            if element_size is not None:
-                opts["element_size"] = element_size
-            if max_iterations is not None:
-                opts["max_iterations"] = max_iterations
-            r = timed_run(scene, Settings(**opts), repeats=1)
+        runs: dict = {kind: [] for kind in WORKERS}
+        for _ in range(passes):
+            for n, processes in WORKERS:
+                opts = {"workers": n, "processes": processes, "dashboard": "127.0.0.1:0"}
+                if element_size is not None:
+                    opts["element_size"] = element_size
+                if max_iterations is not None:
+                    opts["max_iterations"] = max_iterations
+                runs[(n, processes)].append(timed_run(scene, Settings(**opts), repeats=1))
+        for (n, processes), done in runs.items():
+            base = runs[(1, processes)]
+            ratios = sorted(b["seconds"] / r["seconds"] for b, r in zip(base, done, strict=True))
+            r = sorted(done, key=lambda x: x["seconds"])[(len(done) - 1) // 2]
             rep = r["report"]
             mem = rep.get("memory", {})
             # a worker process's peak (the process is the run's own); the in-process run's
@@ -222,15 +234,12 @@ def workers(scenes: list[Path], element_size: float | None, max_iterations: int 
             peak = max([w["peak_mib"] for w in mem.get("workers", [])], default=None) \
                 if processes else None
             rows.append({"scene": scene.name, "workers": n, "processes": processes,
-                         "seconds": r["seconds"],
+                         "seconds": r["seconds"], "passes": [x["seconds"] for x in done],
                          "elements": rep["counts"]["elements"], "shots": rep["iterations"],
                          "converged": rep["converged"], "peak MiB": peak,
                          "worker peaks MiB": [w["peak_mib"] for w in mem.get("workers", [])],
-                         **{f"{k} s": v for k, v in rep["seconds"].items()}})
-    for row in rows:
-        base = next(r for r in rows if r["scene"] == row["scene"] and r["workers"] == 1
-                    and r["processes"] == row["processes"])
-        row["speed-up vs 1 worker"] = base["seconds"] / row["seconds"]
+                         **{f"{k} s": v for k, v in rep["seconds"].items()},
+                         "speed-up vs 1 worker": ratios[(len(ratios) - 1) // 2]})
     return rows
 
 
@@ -280,10 +289,11 @@ def main(argv: list[str] | None = None) -> dict:
     else:
         scenes = args.scene or [CORNELL]
         size, cap = (None if args.scene else LARGE_ELEMENT_SIZE), None
-    wrows = workers(scenes, size, cap)
+    wrows = workers(scenes, size, cap, 1 if quick else WORKER_PASSES)
     result["workers"] = wrows
     print("\nWhole runs by --workers (0: in-process threads, no Dask; a LocalCluster of "
-          "threads, or of processes, its start included; vs 1: against 1 worker of its kind)")
+          "threads, or of processes, its start included; vs 1: against 1 worker of its kind "
+          "in the same pass; medians of the passes)")
     print(f"{'scene':<20}{'workers':>8}{'kind':>10}{'elements':>10}{'shots':>7}{'seconds':>9}"
           f"{'direct':>8}{'solve':>8}{'render':>8}{'vs 1':>7}{'worker MiB':>11}")
     for r in wrows:
