@@ -87,11 +87,8 @@ def receiver_factors(vertices, elem_verts, elem_centroid, elem_normal, elem_area
             out[m] = _one_sided(c[0], c[1], c[2], nrm[0], nrm[1], nrm[2], pn, pd, corners,
                                 count, sc)
             continue
-        ev = elem_verts[e]
-        for q in range(4):
-            v = ev[q] if ev[q] >= 0 else ev[2]      # a triangle's second half is empty
-            for a in range(3):
-                quad[q, a] = vertices[v, a]
+        if _corners(vertices, elem_verts[e], quad) == 3:
+            quad[3, :] = quad[2, :]     # a triangle's second half (0, 2, 3) is empty
         num = 0.0
         den = 0.0
         for h in range(2):
