@@ -11,9 +11,15 @@ import pytest
 from daskrad import cli, direct, tolerances
 from daskrad.errors import OptionError
 from daskrad.formfactor import analytic_rows
-from daskrad.kernels.arealight import HINT, area_irradiance_stats, clip_planes, clip_polygon
+from daskrad.kernels.arealight import (
+    HINT,
+    SLABS,
+    area_irradiance_stats,
+    clip_planes,
+    clip_polygon,
+)
 from daskrad.kernels.direct import irradiance_points
-from daskrad.kernels.faces import Faces, no_faces
+from daskrad.kernels.faces import Faces, face_hides, no_faces
 from daskrad.kernels.geometry import orthonormal_basis
 from daskrad.kernels.grid import build_grid
 from daskrad.kernels.lambert import lambert_polygon
@@ -183,6 +189,36 @@ def test_a_face_that_hides_the_whole_light_settles_it_by_one_ray():
     F = np.array([lambert_polygon(*p, *UP, LIGHT, 4) for p in pts])
     assert np.all(work_open == 0)
     assert np.array_equal(H_open, np.pi * LE[None, :] * F[:, None] * 1.0)
+
+
+def test_the_face_that_hid_a_light_from_the_last_point_is_tried_before_the_ray():
+    # The 3 × 3 board at y = 1 hides the light from both floor points. From q0 the ray to the
+    # light's first corner hits the board, which proves it. From P that ray first meets a
+    # small tile at y = 0.9, which covers too little of the pyramid to prove anything, so
+    # without a remembered face P goes to the window method (more than one candidate); with
+    # the board remembered from q0 (``hint``, what a direct task carries from vertex to
+    # vertex) the board proves it at once. Either way V = 0: the same bits.
+    tile = _at(0.9, -0.385, -0.185, -0.44, -0.24)
+    tris, faces = _faces([LIGHT, _at(1.0, -1.5, 1.5, -1.5, 1.5), tile])
+    grid = build_grid(np.ascontiguousarray(tris))
+    pts = np.array([[0.0, 0.0, 0.6], P])
+    up = np.tile(UP, (2, 1))
+
+    def run(hint):
+        return area_irradiance_stats(grid, faces, pts, up, OFF, HZ, *_lights(LIGHT), 32, EDGE,
+                                     SLABS, hint)[:2]
+
+    (H, work), (H_plain, work_plain) = run(HINT), run(0)
+    assert np.all(H == 0.0) and np.array_equal(H, H_plain)
+    assert work_plain[0] == 1 and work_plain[1] > 1
+    assert np.array_equal(work, [1, 1])
+    # the kernel itself: from P the ray's face (the tile) proves nothing, the board does
+    eye = P + OFF * UP
+    args = (grid, faces, *eye, UP, LIGHT, 4, np.array([0.0, -1.0, 0.0]), OFF, HZ)
+    board = 2   # the board's first triangle (each quad two, the light's first)
+    assert face_hides(*args) == -1
+    assert face_hides(*args, board) == board
+    assert face_hides(*args, 4) == -1   # the tile remembered: declined, and the ray's too
 
 
 @pytest.mark.parametrize("case", ["partial", "two faces", "below horizon", "at the light"])

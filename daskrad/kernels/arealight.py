@@ -861,8 +861,12 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
         :data:`SLABS`; 0 searches every pyramid whole and draws every candidate (the
         reference for the early stop: the same bits, slower).
     hint : int
-        :data:`HINT` occluders remembered per light and searched first; 0: none (the same
-        bits, slower where housings hide luminaires).
+        :data:`HINT` occluders remembered per light and searched first, and the face that
+        last hid the light wholly tried before :func:`face_hides`'s ray; 0: neither (slower
+        where housings and walls hide luminaires; the same bits, but where the remembered
+        face hides a light the ray's face does not, and the raster would let a pixel through
+        that face, which covers the whole light: then ``V = 0``, the exact answer, with the
+        hint, and the raster's error without it).
     prune : bool
         Walk only the rows of the pyramid's box that hold a cell of it, and test only its
         cells that hold a triangle (:func:`_candidates`); ``False``: every cell (the same
@@ -918,6 +922,8 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
     # per light, the occluders that last hid it wholly (a ring of HINT, count last)
     hints = np.zeros((em_corners.shape[0], max(hint, 1) + 1), dtype=np.int32)
     hid = np.zeros(max(hint, 1) + 1, dtype=np.int32)
+    # per light, the triangle whose face last hid it wholly (face_hides tries it first)
+    face_hint = np.full(em_corners.shape[0], -1, dtype=np.int64)
     sid = 0
     for i in range(npts):
         p = points[i]
@@ -933,8 +939,12 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
             F = lambert_polygon(p[0], p[1], p[2], n[0], n[1], n[2], em_corners[m], cntm)
             if F <= 0.0:
                 continue
-            if face_hides(grid, faces, p[0] + off * n[0], p[1] + off * n[1],
-                          p[2] + off * n[2], n, em_corners[m], cntm, en, off, hz):
+            k = face_hides(grid, faces, p[0] + off * n[0], p[1] + off * n[1],
+                           p[2] + off * n[2], n, em_corners[m], cntm, en, off, hz,
+                           face_hint[m])
+            if k >= 0:
+                if hint > 0:
+                    face_hint[m] = k
                 work[i] += 1        # one occluder, and V = 0 exactly
                 classes[i, m] = LIGHT_HIDDEN
                 continue
