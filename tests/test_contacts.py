@@ -118,3 +118,81 @@ def test_flat_scene_has_no_contacts():
     t = np.concatenate([rng.uniform(0.0, 1.0, (50, 3, 2)), np.zeros((50, 3, 1))], axis=2)
     corners = t[:, [0, 1, 2, 2]]
     assert len(check(corners, np.zeros(50, bool), 1e-6)) == 0
+
+
+def _area(piece):
+    """Area of a planar polygon ``(k, 3)`` in the plane z = 0 (shoelace; counter-clockwise
+    about +z is positive)."""
+    x, y = piece[:, 0], piece[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_cut_polygons_tiles_each_polygon_with_convex_pieces_on_one_side_of_every_line(seed):
+    # Quads and triangles of the plane z = 0 (normal +z), each cut by random segments that
+    # cross it from side to side (a contact edge as long as the polygon: its line is cut
+    # wherever it passes). Exact properties of a BSP cut: the pieces of a polygon tile it
+    # (their areas sum to its area, to round-off: coordinates of order 1, so 1e-12), each is
+    # a convex quad or triangle wound like the polygon, inside it, and on one side of every
+    # cutting line (within the length tolerance); a polygon no segment crosses is its own
+    # piece, bit for bit.
+    from daskrad.kernels.contacts import cut_polygons
+
+    rng = np.random.default_rng(seed)
+    tol = 1e-9
+    polys, quads = [], []
+    for k in range(20):
+        c = rng.uniform(0, 10, 2)
+        r = rng.uniform(0.5, 2.0)
+        ang = np.sort(rng.uniform(0, 2 * np.pi, 4 if k % 3 else 3))
+        pts = np.column_stack([c[0] + r * np.cos(ang), c[1] + r * np.sin(ang),
+                               np.zeros(len(ang))])
+        polys.append(pts if len(pts) == 4 else np.vstack([pts, pts[2:3]]))
+        quads.append(len(ang) == 4)
+    corners = np.ascontiguousarray(polys)
+    is_quad = np.array(quads)
+    normals = np.tile([0.0, 0.0, 1.0], (len(polys), 1))
+    edge_a, edge_b, start, edges, lines = [], [], [0], [], {}
+    for i in range(len(polys)):
+        own = []
+        for _ in range(int(rng.integers(0, 4)) if i % 5 else 0):   # every fifth: uncut
+            c = corners[i, :3].mean(axis=0) + np.append(rng.uniform(-0.3, 0.3, 2), 0.0)
+            d = np.append(rng.normal(size=2), 0.0)
+            d /= np.linalg.norm(d)
+            edge_a.append(c - 5 * d)
+            edge_b.append(c + 5 * d)
+            own.append(len(edge_a) - 1)
+        edges += own
+        start.append(len(edges))
+        lines[i] = own
+    edge_a, edge_b = np.array(edge_a), np.array(edge_b)
+    out_c, out_q, parent = cut_polygons(corners, is_quad, normals, edge_a, edge_b,
+                                        np.array(start, np.int64), np.array(edges, np.int64),
+                                        tol)
+    assert np.all(np.diff(parent) >= 0) and set(parent) == set(range(len(polys)))
+    cut_any = False
+    for i in range(len(polys)):
+        mine = np.flatnonzero(parent == i)
+        whole = corners[i, :4 if is_quad[i] else 3]
+        if not lines[i]:
+            assert len(mine) == 1 and np.array_equal(out_c[mine[0]], corners[i])
+            continue
+        cut_any |= len(mine) > 1
+        pieces = [out_c[j, :4 if out_q[j] else 3] for j in mine]
+        assert abs(sum(_area(p) for p in pieces) - _area(whole)) < 1e-12 * _area(whole) + 1e-12
+        for p in pieces:
+            assert _area(p) > 0
+            for a in range(len(p)):     # convex, counter-clockwise: every turn to the left
+                u, v = p[(a + 1) % len(p)] - p[a], p[(a + 2) % len(p)] - p[(a + 1) % len(p)]
+                assert u[0] * v[1] - u[1] * v[0] >= -1e-12
+            for e in lines[i]:          # on one side of the line (within tol)
+                m = np.cross([0.0, 0.0, 1.0], edge_b[e] - edge_a[e])
+                m /= np.linalg.norm(m)
+                s = (p - edge_a[e]) @ m
+                assert s.min() >= -1e-9 or s.max() <= 1e-9
+            for q in p:                 # inside the polygon
+                for a in range(len(whole)):
+                    u = whole[(a + 1) % len(whole)] - whole[a]
+                    w = q - whole[a]
+                    assert u[0] * w[1] - u[1] * w[0] >= -1e-9
+    assert cut_any
