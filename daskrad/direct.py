@@ -331,9 +331,12 @@ def vertex_light(ctx: DirectContext, start: int, stop: int) -> tuple[np.ndarray,
     the per-pixel pass skips the shadow rays of a light every corner of an element agrees
     on, :func:`daskrad.render.light_modes`).
 
-    The Dask task ``direct-<generation>-<n>``. Each vertex's value depends only on the context
-    and its id (the jitter seed), never on the range it was computed in. Area lights are
-    shadowed by ``AREA_METHODS[ctx.area_method]``.
+    The Dask task ``direct-<generation>-<n>``. A vertex's value depends on the context, its id
+    (the jitter seed) and, by the window method's remembered faces, the vertices before it in
+    the range (:mod:`daskrad.kernels.arealight`: only where the remembered face proves exactly
+    what the raster would miss); callers use the fixed ranges of :func:`batches`, so the bits
+    do not depend on the number of workers. Area lights are shadowed by
+    ``AREA_METHODS[ctx.area_method]``.
     """
     H, classes = AREA_METHODS[ctx.area_method](ctx, start, stop)
     return H, (classes if ctx.keep_classes else np.zeros((len(H), 0), np.int8))

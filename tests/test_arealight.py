@@ -219,6 +219,17 @@ def test_the_face_that_hid_a_light_from_the_last_point_is_tried_before_the_ray()
     assert face_hides(*args) == -1
     assert face_hides(*args, board) == board
     assert face_hides(*args, 4) == -1   # the tile remembered: declined, and the ray's too
+    # A remembered face is tested at every corner, the first included (no ray vouches for
+    # it): a board at y = 1 notched along x + z = -0.55 holds the crossings towards corners
+    # 1-3 but not corner 0's (-0.35, -0.4), 0.14 outside. It hides nothing wholly (the light
+    # shows through the notch), so with it remembered the answer must still be -1.
+    notch = [[-1.5, 1.0, 0.95], [0.95, 1.0, -1.5], [2.0, 1.0, 0.0], [0.0, 1.0, 2.0]]
+    tris2, faces2 = _faces([LIGHT, notch])
+    grid2 = build_grid(np.ascontiguousarray(tris2))
+    assert face_hides(grid2, faces2, *args[2:], 2) == -1
+    H2 = area_irradiance_stats(grid2, faces2, P[None], UP[None], OFF, HZ, *_lights(LIGHT), 32,
+                               EDGE)[0]
+    assert 0.0 < H2[0, 0] < np.pi * LE[0] * lambert_polygon(*P, *UP, LIGHT, 4)
 
 
 @pytest.mark.parametrize("case", ["partial", "two faces", "below horizon", "at the light"])

@@ -196,3 +196,16 @@ def test_cut_polygons_tiles_each_polygon_with_convex_pieces_on_one_side_of_every
                     w = q - whole[a]
                     assert u[0] * w[1] - u[1] * w[0] >= -1e-9
     assert cut_any
+    # A contact edge cuts only a polygon it runs through: the unit square, and an edge on the
+    # line y = 0.5 that stops short of it (the line crosses the square, the edge does not),
+    # then one that ends halfway in (it cuts the square in two along the whole line).
+    square = np.array([[[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]])
+    up = np.array([[0.0, 0.0, 1.0]])
+    for (a, b), pieces in ((([2.0, 0.5, 0], [3.0, 0.5, 0]), 1),
+                           (([-1.0, 0.5, 0], [0.5, 0.5, 0]), 2)):
+        out = cut_polygons(square, np.array([True]), up, np.array([a], float),
+                           np.array([b], float), np.array([0, 1], np.int64),
+                           np.array([0], np.int64), tol)
+        assert len(out[2]) == pieces
+        if pieces == 1:
+            assert np.array_equal(out[0][0], square[0])

@@ -60,8 +60,12 @@ an outline crosses (at most ``4R + 4`` for a convex outline in an ``R × R`` win
 per-row errors cancel and the error is far below that bound (tests/test_arealight.py,
 benchmarks/bench_arealight.py).
 
-Each point's value depends only on the point and the scene, never on the batch it is computed
-in: the result has the same bits for any batching and any number of workers.
+A point's value depends on the point, the scene and the points before it in the same call
+(the face that last hid each light, tried first, :func:`daskrad.kernels.faces.face_hides`):
+where that face proves a light hidden that the ray's face does not, ``V = 0``, the exact answer,
+stands where the window method alone would give its raster's error (one vertex of 293,004 in
+RenderPark's office, 1.5e-4 → 0). The direct pass calls it on fixed vertex ranges
+(:func:`daskrad.direct.batches`), so the bits are the same on any number of workers.
 """
 
 from __future__ import annotations

@@ -382,7 +382,9 @@ def cut_polygons(corners, is_quad, normals, edge_a, edge_b, start, edges, tol):
         k0 = 4 if is_quad[i] else 3
         if ne > 0:
             n = normals[i]
-            kmax = k0 + ne          # each cut adds at most one corner to a part
+            # each cut adds at most one corner to a part: a piece is cut only where the edge
+            # runs through its interior (_crosses), so the line meets its boundary twice
+            kmax = k0 + ne
             pieces = np.empty((1, kmax, 3))
             counts = np.empty(1, np.int64)
             pieces[0, :k0] = corners[i, :k0]
