@@ -243,15 +243,15 @@ def _crosses(piece, k, n, a, b, tol):
 
 
 @jit
-def _cut(piece, k, m, c, tol, pos, neg):
-    """``piece[:k]`` cut by the plane ``m · x = c`` into ``pos`` and ``neg`` (order kept);
-    returns their corner counts."""
+def _cut(piece, k, s, tol, pos, neg):
+    """``piece[:k]`` cut by a plane into ``pos`` and ``neg`` (order kept), ``s[:k]`` its
+    corners' signed distances from the plane; returns the parts' corner counts."""
     n_pos = 0
     n_neg = 0
     for i in range(k):
         j = i + 1 if i + 1 < k else 0
-        si = _side(piece[i], m, c)
-        sj = _side(piece[j], m, c)
+        si = s[i]
+        sj = s[j]
         if si >= -tol:
             pos[n_pos] = piece[i]
             n_pos += 1
@@ -385,6 +385,7 @@ def cut_polygons(corners, is_quad, normals, edge_a, edge_b, start, edges, tol):
             # each cut adds at most one corner to a part: a piece is cut only where the edge
             # runs through its interior (_crosses), so the line meets its boundary twice
             kmax = k0 + ne
+            side = np.empty(kmax)   # a piece's corners' signed distances from the edge's line
             pieces = np.empty((1, kmax, 3))
             counts = np.empty(1, np.int64)
             pieces[0, :k0] = corners[i, :k0]
@@ -413,13 +414,13 @@ def cut_polygons(corners, is_quad, normals, edge_a, edge_b, start, edges, tol):
                     lo = np.inf
                     hi = -np.inf
                     for v in range(k):
-                        sv = _side(pieces[p, v], m, c)
-                        lo = min(lo, sv)
-                        hi = max(hi, sv)
+                        side[v] = _side(pieces[p, v], m, c)
+                        lo = min(lo, side[v])
+                        hi = max(hi, side[v])
                     if (hi > tol and lo < -tol
                             and _crosses(pieces[p], k, n, edge_a[e], edge_b[e], tol)):
                         nxt_counts[n_next], nxt_counts[n_next + 1] = _cut(
-                            pieces[p], k, m, c, tol, nxt[n_next], nxt[n_next + 1])
+                            pieces[p], k, side, tol, nxt[n_next], nxt[n_next + 1])
                         n_next += 2
                     else:
                         nxt[n_next, :k] = pieces[p, :k]
