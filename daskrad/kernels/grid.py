@@ -479,13 +479,16 @@ def _start(o, d, t0, origin, cell, n):
 
 
 @jit
-def _next_t(o, d, i, plane_off, origin, cell):
-    """``t`` at which the ray leaves cell ``i`` along one axis (inf when parallel)."""
-    if d == 0.0:
+def _next_t(o, inv, i, plane_off, origin, cell):
+    """``t`` at which the ray leaves cell ``i`` along one axis (inf when parallel); ``inv``
+    is ``1 / d`` (0 when the ray is parallel to the axis's planes)."""
+    if inv == 0.0:
         return np.inf
     # Recomputed from the plane's index every step (no accumulated tDelta), so the cell
-    # boundaries the walk uses are those of registration up to one rounding.
-    return (origin + (i + plane_off) * cell - o) / d
+    # boundaries the walk uses are those of registration up to two roundings (a product by
+    # 1/d: a division's latency on every step of the walk was its dearest part), far within
+    # GRID_MARGIN.
+    return (origin + (i + plane_off) * cell - o) * inv
 
 
 @jit
@@ -525,9 +528,15 @@ def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode, fan):
     best_t, best_tri, best_u, best_v = tmax, -1, 0.0, 0.0
     key = fan.key[0]
     cull = _culls(fan, ox, oy, oz, dx, dy, dz, tmin)
-    tx = _next_t(ox, dx, i, oi, origin[0], cell[0])
-    ty = _next_t(oy, dy, j, oj, origin[1], cell[1])
-    tz = _next_t(oz, dz, k, ok, origin[2], cell[2])
+    # 1/d, 0 for an axis the ray does not cross (|d| so small that 1/d would overflow to
+    # inf, and inf · 0 make a NaN boundary, is taken as parallel: it moves the ray by less
+    # than 1e-300 of t along that axis)
+    ix = 1.0 / dx if abs(dx) >= 1e-300 else 0.0
+    iy = 1.0 / dy if abs(dy) >= 1e-300 else 0.0
+    iz = 1.0 / dz if abs(dz) >= 1e-300 else 0.0
+    tx = _next_t(ox, ix, i, oi, origin[0], cell[0])
+    ty = _next_t(oy, iy, j, oj, origin[1], cell[1])
+    tz = _next_t(oz, iz, k, ok, origin[2], cell[2])
     while True:
         t_exit = min(tx, ty, tz)
         c = (k * ny + j) * nx + i
@@ -548,17 +557,17 @@ def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode, fan):
             i += si
             if i < 0 or i >= nx:
                 break
-            tx = _next_t(ox, dx, i, oi, origin[0], cell[0])
+            tx = _next_t(ox, ix, i, oi, origin[0], cell[0])
         elif ty <= tz:
             j += sj
             if j < 0 or j >= ny:
                 break
-            ty = _next_t(oy, dy, j, oj, origin[1], cell[1])
+            ty = _next_t(oy, iy, j, oj, origin[1], cell[1])
         else:
             k += sk
             if k < 0 or k >= nz:
                 break
-            tz = _next_t(oz, dz, k, ok, origin[2], cell[2])
+            tz = _next_t(oz, iz, k, ok, origin[2], cell[2])
     if best_tri < 0:
         return miss
     return best_t, best_tri, best_u, best_v
