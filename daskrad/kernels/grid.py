@@ -537,13 +537,22 @@ def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode, fan):
     tx = _next_t(ox, ix, i, oi, origin[0], cell[0])
     ty = _next_t(oy, iy, j, oj, origin[1], cell[1])
     tz = _next_t(oz, iz, k, ok, origin[2], cell[2])
+    # The last four triangles tested (a mailbox in registers): a triangle met again in a
+    # later cell is not tested again. Its answer could not change: a miss stays a miss (the
+    # range only shrinks), and a hit is the best so far or behind it. A large polygon lies in
+    # many cells: two thirds of the tests of graz's free shadow rays were repeats (35 tests
+    # and 78 cells a ray), and four remembered catch two thirds of those.
+    r0 = r1 = r2 = r3 = -1
     while True:
         t_exit = min(tx, ty, tz)
         c = (k * ny + j) * nx + i
         for m in range(cell_start[c], cell_start[c + 1]):
             tri = cell_items[m]
+            if tri == r0 or tri == r1 or tri == r2 or tri == r3:
+                continue
             if cull and _below(fan, tris, tri, key):
                 continue
+            r3, r2, r1, r0 = r2, r1, r0, tri
             hit, t, u, v = _intersect(tris, tri, ox, oy, oz, dx, dy, dz, tmin, best_t, eps)
             if hit:
                 if any_mode:
