@@ -19,7 +19,7 @@ from daskrad.kernels.arealight import (
     clip_polygon,
 )
 from daskrad.kernels.direct import irradiance_points
-from daskrad.kernels.faces import Faces, face_hides, no_faces
+from daskrad.kernels.faces import Faces, face_hides, face_proves, no_faces
 from daskrad.kernels.geometry import orthonormal_basis
 from daskrad.kernels.grid import build_grid
 from daskrad.kernels.lambert import lambert_polygon
@@ -204,9 +204,9 @@ def test_the_face_that_hid_a_light_from_the_last_point_is_tried_before_the_ray()
     pts = np.array([[0.0, 0.0, 0.6], P])
     up = np.tile(UP, (2, 1))
 
-    def run(hint):
+    def run(hint):       # one face at a time (union 0): the faces' rays would find the board
         return area_irradiance_stats(grid, faces, pts, up, OFF, HZ, *_lights(LIGHT), 32, EDGE,
-                                     SLABS, hint)[:2]
+                                     SLABS, hint, True, 0)[:2]
 
     (H, work), (H_plain, work_plain) = run(HINT), run(0)
     assert np.all(H == 0.0) and np.array_equal(H, H_plain)
@@ -216,9 +216,10 @@ def test_the_face_that_hid_a_light_from_the_last_point_is_tried_before_the_ray()
     eye = P + OFF * UP
     args = (grid, faces, *eye, UP, LIGHT, 4, np.array([0.0, -1.0, 0.0]), OFF, HZ)
     board = 2   # the board's first triangle (each quad two, the light's first)
-    assert face_hides(*args) == -1
-    assert face_hides(*args, board) == board
-    assert face_hides(*args, 4) == -1   # the tile remembered: declined, and the ray's too
+    assert face_hides(*args, -1, 0) == -1
+    assert face_hides(*args, board, 0) == board
+    assert face_hides(*args, 4, 0) == -1   # the tile remembered: declined, and the ray's too
+    assert face_hides(*args) == 4   # with the faces the other corners' rays meet: proved
     # A remembered face is tested at every corner, the first included (no ray vouches for
     # it): a board at y = 1 notched along x + z = -0.55 holds the crossings towards corners
     # 1-3 but not corner 0's (-0.35, -0.4), 0.14 outside. It hides nothing wholly (the light
@@ -226,21 +227,90 @@ def test_the_face_that_hid_a_light_from_the_last_point_is_tried_before_the_ray()
     notch = [[-1.5, 1.0, 0.95], [0.95, 1.0, -1.5], [2.0, 1.0, 0.0], [0.0, 1.0, 2.0]]
     tris2, faces2 = _faces([LIGHT, notch])
     grid2 = build_grid(np.ascontiguousarray(tris2))
-    assert face_hides(grid2, faces2, *args[2:], 2) == -1
+    assert face_hides(grid2, faces2, *args[2:], 2) == -1 == face_hides(grid2, faces2,
+                                                                        *args[2:], 2, 0)
     H2 = area_irradiance_stats(grid2, faces2, P[None], UP[None], OFF, HZ, *_lights(LIGHT), 32,
                                EDGE)[0]
     assert 0.0 < H2[0, 0] < np.pi * LE[0] * lambert_polygon(*P, *UP, LIGHT, 4)
 
 
-@pytest.mark.parametrize("case", ["partial", "two faces", "below horizon", "at the light"])
+@pytest.mark.parametrize("case", ["two boards", "a board and a wall"])
+def test_faces_that_hide_the_whole_light_together_settle_it_without_the_window(case):
+    # Two boards at y = 1 meeting at x = 0.3; or a board at y = 1 up to x = 0.6 and a wall
+    # x = 0.6 from y = 0.5 up through the light's plane (its plane does not separate the
+    # point from the light: it hides only the light's part beyond it, x > 0.9 seen from p).
+    # No face hides the light alone; together they do: V = 0 with one occluder (work 1),
+    # the bits of the window method, which rasterizes them.
+    if case == "two boards":
+        quads = [LIGHT, _at(1.0, -3, 0.3, -3, 3), _at(1.0, 0.3, 3, -3, 3)]
+    else:
+        quads = [LIGHT, _at(1.0, -3, 0.6, -3, 3),
+                 [[0.6, 0.5, -3], [0.6, 3.0, -3], [0.6, 3.0, 3], [0.6, 0.5, 3]]]
+    tris, faces = _faces(quads)
+    H, work = _area(tris, P, UP, LIGHT, 32, faces)
+    H_w, work_w = _area(tris, P, UP, LIGHT, 32)
+    assert H[0, 0] == 0.0 and np.array_equal(H, H_w)
+    assert work[0] == 1 and work_w[0] > 1
+    grid = build_grid(np.ascontiguousarray(tris))
+    args = (grid, faces, *(P + OFF * UP), UP, LIGHT, 4, np.array([0.0, -1.0, 0.0]), OFF, HZ)
+    assert all(face_proves(grid, faces, k, *args[2:], -1.0) is False
+               for k in range(2, len(tris)))            # no single face would do
+    assert face_hides(*args) >= 2
+
+
+def test_faces_hide_only_lights_no_ray_reaches():
+    # Random boards and walls between floor points and the light (two boards split at a
+    # random x, overlapping or with a gap, at their own heights, and more at random):
+    # wherever the face test (one face or several) says hidden, none of 48 x 48 stratified
+    # shadow rays from the point to the light gets through; and it proves some that no
+    # single face hides.
+    from daskrad.kernels.grid import any_hit
+
+    rng = np.random.default_rng(7)
+    en = np.array([0.0, -1.0, 0.0])
+    u = (np.arange(48) + 0.5) / 48
+    uu, vv = (a.ravel() for a in np.meshgrid(u, u))
+    q = np.column_stack([-1 + 2 * uu, np.full_like(uu, 2.0), -1 + 2 * vv])
+    proved = several = 0
+    for _ in range(60):
+        xs = rng.uniform(-0.5, 0.8)
+        quads = [LIGHT, _at(rng.uniform(0.5, 1.5), -3, xs + rng.uniform(-0.1, 0.05), -3, 3),
+                 _at(rng.uniform(0.5, 1.5), xs + rng.uniform(-0.1, 0.05), 3, -3, 3)]
+        for _ in range(rng.integers(0, 3)):
+            x0, z0 = rng.uniform(-2.5, 0.5, 2)
+            x1, z1 = x0 + rng.uniform(0.5, 3), z0 + rng.uniform(0.5, 3)
+            if rng.random() < 0.7:
+                quads.append(_at(rng.uniform(0.4, 1.8), x0, x1, z0, z1))
+            else:                                   # a wall x = x0 from y0 to y1
+                y0 = rng.uniform(0.0, 1.0)
+                quads.append([[x0, y0, z0], [x0, y0 + 2.5, z0], [x0, y0 + 2.5, z1],
+                              [x0, y0, z1]])
+        tris, faces = _faces(quads)
+        grid = build_grid(np.ascontiguousarray(tris))
+        p = np.array([rng.uniform(-1, 1), 0.0, rng.uniform(-1, 1)])
+        e = p + OFF * UP
+        k = face_hides(grid, faces, *e, UP, LIGHT, 4, en, OFF, HZ)
+        if k < 0:
+            continue
+        proved += 1
+        several += not any(face_proves(grid, faces, j, *e, UP, LIGHT, 4, en, OFF, HZ, -1.0)
+                           for j in range(2, len(tris)))
+        d = q - e
+        tmax = 1.0 - OFF / np.linalg.norm(d, axis=1)
+        assert any_hit(grid, np.repeat(e[None], len(q), 0), d, 0.0, tmax).all()
+    assert proved >= 10 and several >= 10
+
+
+@pytest.mark.parametrize("case", ["partial", "two boards with a gap", "below horizon",
+                                  "at the light"])
 def test_the_face_test_proves_nothing_it_cannot(case):
-    # Where no single face hides the whole light the face test must decline, and the window
+    # Where no face or faces hide the whole light the face test must decline, and the window
     # method decides, with the bits it has without faces.
     p, n = P, UP
     if case == "partial":        # the board hides x > 0.4 only: V ≈ 0.56, not 0
         quads = [LIGHT, _at(1.0, 0.4, 3, -3, 3)]
-    elif case == "two faces":    # two boards meeting at x = 0.3 hide it together (V = 0)
-        quads = [LIGHT, _at(1.0, -3, 0.3, -3, 3), _at(1.0, 0.3, 3, -3, 3)]
+    elif case == "two boards with a gap":  # 0.05 between them at x = 0.3: V > 0
+        quads = [LIGHT, _at(1.0, -3, 0.3, -3, 3), _at(1.0, 0.35, 3, -3, 3)]
     elif case == "below horizon":  # a point on a wall z = 0, half the light behind it
         quads = [LIGHT, _at(1.5, -3, 3, -3, 3)]
         p, n = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
@@ -252,7 +322,7 @@ def test_the_face_test_proves_nothing_it_cannot(case):
     assert np.array_equal(H, H_w) and np.array_equal(work, work_w)
     F = lambert_polygon(*p, *n, LIGHT, 4)
     V = H[0, 0] / (np.pi * LE[0] * F)
-    assert {"partial": 0.3 < V < 0.8, "two faces": V == 0.0,
+    assert {"partial": 0.3 < V < 0.8, "two boards with a gap": 0.0 < V < 0.1,
             "below horizon": F > 0 and V == 0.0, "at the light": V == 1.0}[case]
 
 

@@ -74,7 +74,7 @@ import numpy as np
 
 from daskrad.kernels._jit import jit
 from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_VISIBLE
-from daskrad.kernels.faces import face_hides
+from daskrad.kernels.faces import UNION_RAYS, face_hides
 from daskrad.kernels.geometry import lex_less, orthonormal_basis
 from daskrad.kernels.grid import any_hit_one
 from daskrad.kernels.hemisphere import (
@@ -841,7 +841,7 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
 @jit
 def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_count,
                           em_normal, em_radiance, resolution, edge_angle, slabs=SLABS,
-                          hint=HINT, prune=True):
+                          hint=HINT, prune=True, union=UNION_RAYS):
     """Irradiance from the area lights at ``points`` by the window method, and its work.
 
     Parameters
@@ -882,6 +882,11 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
         Walk only the rows of the pyramid's box that hold a cell of it, and test only its
         cells that hold a triangle (:func:`_candidates`); ``False``: every cell (the same
         bits, slower).
+    union : int
+        Where no single face hides a light, try the faces several rays meet together
+        (:func:`daskrad.kernels.faces.faces_hide`, ``union`` rays beyond the light's
+        corners, :data:`~daskrad.kernels.faces.UNION_RAYS`); 0: no such proof (the window
+        method's bits but where its raster lets a pixel through faces that cover the light).
 
     Returns
     -------
@@ -952,7 +957,7 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
                 continue
             k = face_hides(grid, faces, p[0] + off * n[0], p[1] + off * n[1],
                            p[2] + off * n[2], n, em_corners[m], cntm, en, off, hz,
-                           face_hint[m])
+                           face_hint[m], union)
             if k >= 0:
                 if hint > 0:
                     face_hint[m] = k
