@@ -56,7 +56,7 @@ import numpy as np
 from daskrad import direct, tolerances
 from daskrad.kernels.arealight import HINT, SLABS, area_irradiance_stats
 from daskrad.kernels.direct import LIGHT_VISIBLE, irradiance_points
-from daskrad.kernels.faces import no_faces
+from daskrad.kernels.faces import UNION_RAYS, no_faces
 from daskrad.kernels.grid import build_grid
 from daskrad.kernels.lambert import lambert_polygon
 from daskrad.mesh import build_hierarchy, default_sizes, hierarchy_triangles
@@ -202,28 +202,37 @@ def _scene(path: str, vertices: int) -> dict:
             direct.AREA_RESOLUTION, np.radians(tolerances.EDGE_ANGLE_DEG))
     window = no_faces(len(ctx.grid.triangles))
     polygons = mesh.occluders
-    modes = {"polygons": (polygons.faces, SLABS, HINT, True),
-             "faces": (ctx.faces, SLABS, HINT, True),
-             "every row": (ctx.faces, SLABS, HINT, False),
-             "hint": (window, SLABS, HINT, True), "early stop": (window, SLABS, 0, True),
-             "exhaustive": (window, 0, 0, False)}
+    # each mode: faces, slabs, hint, prune, union (rays of the several-faces proof)
+    modes = {"polygons": (polygons.faces, SLABS, HINT, True, UNION_RAYS),
+             "one face": (polygons.faces, SLABS, HINT, True, 0),
+             "faces": (ctx.faces, SLABS, HINT, True, UNION_RAYS),
+             "every row": (ctx.faces, SLABS, HINT, False, UNION_RAYS),
+             "hint": (window, SLABS, HINT, True, 0), "early stop": (window, SLABS, 0, True, 0),
+             "exhaustive": (window, 0, 0, False, 0)}
     def grid_of(name):
-        return polygons.grid if name == "polygons" else ctx.grid
+        return polygons.grid if name in ("polygons", "one face") else ctx.grid
 
-    for name, (faces, slabs, hint, prune) in modes.items():  # compile (or load) first
-        area_irradiance_stats(grid_of(name), faces, P[:4], N[:4], *args, slabs, hint, prune)
+    for name, (faces, slabs, hint, prune, union) in modes.items():  # compile (or load)
+        area_irradiance_stats(grid_of(name), faces, P[:4], N[:4], *args, slabs, hint, prune,
+                              union)
     best = dict.fromkeys(modes, np.inf)
     out = {}
     for _ in range(2):
-        for name, (faces, slabs, hint, prune) in modes.items():
+        for name, (faces, slabs, hint, prune, union) in modes.items():
             t = time.process_time()
             out[name] = area_irradiance_stats(grid_of(name), faces, P, N, *args, slabs, hint,
-                                              prune)
+                                              prune, union)
             best[name] = min(best[name], time.process_time() - t)
+    one = out["one face"][0]
+    several = (out["polygons"][0] != one).any(axis=1)
     moved = np.abs(out["faces"][0] - out["exhaustive"][0]).sum(axis=1)
     total = out["exhaustive"][0].sum(axis=1)
     return {**_polygons(ctx, polygons.grid, P, N, out["faces"], out["polygons"]),
             "cpu_seconds_polygons": best["polygons"],
+            "cpu_seconds_polygons_one_face": best["one face"],
+            "several_faces_moved_vertices": int(several.sum()),
+            "several_faces_moved_max": float(np.abs(out["polygons"][0] - one).max()
+                                             / max(one.max(), 1e-300)),
             "scene": Path(path).name, "vertices": len(P), "of_vertices": V,
             "emitter_patches": int(len(ctx.emitter_corners)), **_pairs(ctx, P, N),
             "cpu_seconds_faces": best["faces"],
@@ -295,6 +304,10 @@ def scenes(paths: list[str], vertices: int) -> list[dict]:
               f"{r['cpu_seconds_exhaustive']:.2f} ({r['candidates_exhaustive']}); hint "
               f"x{r['cpu_seconds_early_stop'] / r['cpu_seconds_hint']:.2f} over the early "
               f"stop, same bits: {r['same_bits']}")
+        print(f"  several faces together (faces_hide) through the polygons: CPU s "
+              f"{r['cpu_seconds_polygons']:.2f} against {r['cpu_seconds_polygons_one_face']:.2f}"
+              f" one face at a time; {r['several_faces_moved_vertices']} vertices moved, at "
+              f"most {r['several_faces_moved_max']:.1e} of the largest")
         print(f"  occluders from the polygons: CPU s {r['cpu_seconds_polygons']:.2f} against "
               f"{r['cpu_seconds_faces']:.2f} through the elements "
               f"(x{r['cpu_seconds_faces'] / r['cpu_seconds_polygons']:.2f}); irradiance "
