@@ -133,6 +133,30 @@ def face_hides(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, hint=-1,
 
 
 @jit
+def _plane(tri, ex, ey, ez):
+    """The unit normal ``(fx, fy, fz)`` of triangle ``tri (3, 3)`` (its winding's side) and
+    the signed distance ``fd`` of its plane from ``e`` along it; all zero for a degenerate
+    triangle (no plane: the callers prove nothing with it)."""
+    ux = tri[1, 0] - tri[0, 0]
+    uy = tri[1, 1] - tri[0, 1]
+    uz = tri[1, 2] - tri[0, 2]
+    vx = tri[2, 0] - tri[0, 0]
+    vy = tri[2, 1] - tri[0, 1]
+    vz = tri[2, 2] - tri[0, 2]
+    fx = uy * vz - uz * vy
+    fy = uz * vx - ux * vz
+    fz = ux * vy - uy * vx
+    fl = np.sqrt(fx * fx + fy * fy + fz * fz)
+    if not fl > 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    fx /= fl
+    fy /= fl
+    fz /= fl
+    fd = fx * tri[0, 0] + fy * tri[0, 1] + fz * tri[0, 2] - (fx * ex + fy * ey + fz * ez)
+    return fx, fy, fz, fd
+
+
+@jit
 def face_proves(grid, faces, k, ex, ey, ez, n, corners, count, en, off, hz, t0):
     """Whether the face of the grid's triangle ``k`` hides the whole light from ``e``.
 
@@ -153,23 +177,9 @@ def face_proves(grid, faces, k, ex, ey, ez, n, corners, count, en, off, hz, t0):
     f = faces.tri_face[k]
     if f < 0:
         return False
-    tri = grid.triangles[k]
-    ux = tri[1, 0] - tri[0, 0]
-    uy = tri[1, 1] - tri[0, 1]
-    uz = tri[1, 2] - tri[0, 2]
-    vx = tri[2, 0] - tri[0, 0]
-    vy = tri[2, 1] - tri[0, 1]
-    vz = tri[2, 2] - tri[0, 2]
-    fx = uy * vz - uz * vy
-    fy = uz * vx - ux * vz
-    fz = ux * vy - uy * vx
-    fl = np.sqrt(fx * fx + fy * fy + fz * fz)
-    if not fl > 0.0:
+    fx, fy, fz, fd = _plane(grid.triangles[k], ex, ey, ez)
+    if fx == 0.0 and fy == 0.0 and fz == 0.0:
         return False
-    fx /= fl
-    fy /= fl
-    fz /= fl
-    fd = fx * tri[0, 0] + fy * tri[0, 1] + fz * tri[0, 2] - (fx * ex + fy * ey + fz * ez)
     t_max = 0.0
     for a in range(count):
         dx = corners[a, 0] - ex
@@ -284,23 +294,9 @@ def _less_face(grid, faces, k, ex, ey, ez, n, c1, hz, cur, cc, npc, hs, nxt, nc,
     grid triangle ``k`` hides (:func:`faces_hide`); returns their new count, -1 when they do
     not fit. ``hs (6, 5)``, ``nxt``, ``nc``, ``rest``, ``tmp``: scratch."""
     f = faces.tri_face[k]
-    tri = grid.triangles[k]
-    ux = tri[1, 0] - tri[0, 0]
-    uy = tri[1, 1] - tri[0, 1]
-    uz = tri[1, 2] - tri[0, 2]
-    vx = tri[2, 0] - tri[0, 0]
-    vy = tri[2, 1] - tri[0, 1]
-    vz = tri[2, 2] - tri[0, 2]
-    fx = uy * vz - uz * vy
-    fy = uz * vx - ux * vz
-    fz = ux * vy - uy * vx
-    fl = np.sqrt(fx * fx + fy * fy + fz * fz)
-    if not fl > 0.0:
+    fx, fy, fz, fd = _plane(grid.triangles[k], ex, ey, ez)
+    if fx == 0.0 and fy == 0.0 and fz == 0.0:
         return npc
-    fx /= fl
-    fy /= fl
-    fz /= fl
-    fd = fx * tri[0, 0] + fy * tri[0, 1] + fz * tri[0, 2] - (fx * ex + fy * ey + fz * ez)
     if fd == 0.0:
         return npc
     sg = 1.0 if fd > 0.0 else -1.0
