@@ -301,6 +301,68 @@ def test_faces_hide_only_lights_no_ray_reaches():
     assert proved >= 10 and several >= 10
 
 
+def _free_rays(grid, e, q):
+    """How many of the segments from ``e`` to the points ``q (m, 3)`` no triangle meets."""
+    from daskrad.kernels.grid import any_hit
+
+    d = q - e
+    return int((~any_hit(grid, np.repeat(e[None], len(q), 0), d, 0.0, 1.0 - 1e-9)).sum())
+
+
+def test_faces_hide_declines_when_the_eye_is_behind_the_light():
+    # A vertex within off of the light's plane whose eye e = p + off n lies just behind it
+    # (a tilted normal): the light's edge rule t < 1 - 2 off / h would pass every crossing
+    # if h < 0 were let through (c1 > 1), so a wall beyond the light and a small tile by one
+    # corner would "hide" a light that 666 of 1600 shadow rays reach. The proof must decline.
+    wall = [[0.4, -1, -1], [3.4, 2, -1], [3.4, 2, 1], [0.4, -1, 1]]     # x = y + 1.4
+    tile = [[0.99, 0.48, -0.02], [0.99, 0.52, -0.02], [0.99, 0.52, 0.02], [0.99, 0.48, 0.02]]
+    tris, faces = _faces([wall, tile])
+    grid = build_grid(np.ascontiguousarray(tris))
+    light = np.array([[1, -0.5, 0], [1, 0.5, 0], [2, 0.5, 0], [2, -0.5, 0]], float)
+    en = np.array([0.0, 0.0, -1.0])
+    off, hz = 1e-4, 1e-7
+    n = np.array([math.sin(math.radians(60)), 0.0, math.cos(math.radians(60))])
+    e = np.array([0.0, 0.0, -1e-5]) + off * n
+    assert en @ (e - light[0]) < 0.0 < en @ (e - off * n - light[0])
+    u = (np.arange(40) + 0.5) / 40
+    uu, vv = (a.ravel()[:, None] for a in np.meshgrid(u, u))
+    q = light[0] + uu * (light[3] - light[0]) + vv * (light[1] - light[0])
+    assert _free_rays(grid, e, q) > 0
+    for union in (0, 4):
+        assert face_hides(grid, faces, *e, n, light, 4, en, off, hz, -1, union) == -1
+
+
+@pytest.mark.parametrize("gap_eps", [150.0, 1.5])
+def test_faces_hide_counts_the_edge_tolerance_in_the_face_plane(gap_eps):
+    # Two boards in z = 0 with a slit gap_eps * eps wide at x = 1, seen at a grazing angle
+    # (eye 0.01 above, 2 away) by a light beyond. The ray test closes a slit narrower than
+    # 2 eps (a hit within eps of a triangle's edge counts), so 1.5 eps is proved hidden, no
+    # ray through; 150 eps is open: the edges' margin must be eps within the boards' plane,
+    # not eps from the plane through the eye and the edge (that is ~200 eps in the board at
+    # this angle), so the proof declines.
+    def boards(g):
+        return _faces([[[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]],
+                       [[1 + g, 0, 0], [2, 0, 0], [2, 1, 0], [1 + g, 1, 0]]])
+
+    g = gap_eps * build_grid(np.ascontiguousarray(boards(0.0)[0])).eps
+    tris, faces = boards(g)
+    grid = build_grid(np.ascontiguousarray(tris))
+    assert abs(g / grid.eps - gap_eps) < 1e-3 * gap_eps
+    e = np.array([-1.0, 0.5, 0.01])
+    n, en = np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0])
+    light = np.array([[3, 0.3, -0.008], [3, 0.7, -0.008], [3, 0.7, -0.025], [3, 0.3, -0.025]])
+    # light points whose rays cross z = 0 at x = xc, across the slit and either side of it
+    xc = 1.0 + np.linspace(-2.0 * g, 3.0 * g, 401)
+    q = np.column_stack([np.full_like(xc, 3.0), np.full_like(xc, 0.5), 0.01 - 0.04 / (xc + 1)])
+    assert np.all((q[:, 2] > -0.025) & (q[:, 2] < -0.008))
+    free = _free_rays(grid, e, q)
+    k = face_hides(grid, faces, *e, n, light, 4, en, 1e-4, 1e-6, -1, 4)
+    if gap_eps > 2.0:
+        assert free > 0 and k == -1
+    else:
+        assert free == 0 and k >= 0
+
+
 @pytest.mark.parametrize("case", ["partial", "two boards with a gap", "below horizon",
                                   "at the light"])
 def test_the_face_test_proves_nothing_it_cannot(case):

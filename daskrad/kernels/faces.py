@@ -219,7 +219,8 @@ def faces_hide(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, k0, extr
     :func:`face_proves`). Each rule is a half-space in ``q`` (the crossing's parameter
     ``t = fd / f·(q − e)`` has the sign of ``fd`` there, so ``t < 1 − 2 off / h`` and
     ``t · n·(q − e) > hz`` are linear in ``q``; the edges are the planes through ``e`` and
-    each edge), so a face hides a convex part of the light. The parts left are the light
+    each edge, tilted so that the margin is ``eps`` within the face's plane), so a face
+    hides a convex part of the light. The parts left are the light
     less each such convex set, in convex pieces (clipped by each half-space in turn:
     Sutherland–Hodgman), and the light is hidden when none is left (pieces of area below
     ``eps²`` are none). A single face that hides it all is :func:`face_proves`; this is for
@@ -228,6 +229,10 @@ def faces_hide(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, k0, extr
     no single face does; most of the others have the eye at a junction with a face, where
     the window method's rules decide)."""
     h = en[0] * (ex - corners[0, 0]) + en[1] * (ey - corners[0, 1]) + en[2] * (ez - corners[0, 2])
+    if not h > 0.0:
+        # the eye at or behind the light's plane (possible when the vertex is within
+        # off of it): c1 would exceed 1 and let faces beyond the light count
+        return False
     c1 = 1.0 - 2.0 * off / h
     if not c1 > 0.0:
         return False
@@ -326,9 +331,12 @@ def _less_face(grid, faces, k, ex, ey, ez, n, c1, hz, cur, cc, npc, hs, nxt, nc,
             gz += pcs[a, 2] / pc
         nh = 2
         for a in range(pc):
-            # the plane through e and the edge, its unit normal towards the piece: a
-            # signed distance, by which a point within eps outside the edge at the light is
-            # within t eps < eps of it at the face
+            # the plane through e and the edge, its unit normal w towards the piece. The
+            # crossing x = e + t (q - e) lies within eps of the edge in the face's plane
+            # when w·(x - e) >= -eps sin(θ), θ the angle between that plane and the face's:
+            # sin(θ) = |fd| / ρ, ρ the eye's distance from the edge's line. With
+            # t = fd / f·(q - e) that is (w + (eps / ρ) sg f)·(q - e) >= 0, linear in q
+            # (a margin on w alone would be eps / sin(θ) wide in the face at grazing eyes)
             b = a + 1 if a + 1 < pc else 0
             ax = pcs[a, 0] - ex
             ay = pcs[a, 1] - ey
@@ -342,13 +350,17 @@ def _less_face(grid, faces, k, ex, ey, ez, n, c1, hz, cur, cc, npc, hs, nxt, nc,
             wl = np.sqrt(wx * wx + wy * wy + wz * wz)
             if not wl > 0.0:
                 break                   # the eye in the edge's line: the piece hides nothing
+            ex_ = pcs[b, 0] - pcs[a, 0]
+            ey_ = pcs[b, 1] - pcs[a, 1]
+            ez_ = pcs[b, 2] - pcs[a, 2]
+            m = grid.eps * np.sqrt(ex_ * ex_ + ey_ * ey_ + ez_ * ez_) / wl * sg  # eps/ρ sg
             if wx * (gx - ex) + wy * (gy - ey) + wz * (gz - ez) < 0.0:
                 wl = -wl
-            hs[nh, 0] = wx / wl
-            hs[nh, 1] = wy / wl
-            hs[nh, 2] = wz / wl
+            hs[nh, 0] = wx / wl + m * fx
+            hs[nh, 1] = wy / wl + m * fy
+            hs[nh, 2] = wz / wl + m * fz
             hs[nh, 3] = 0.0
-            hs[nh, 4] = grid.eps
+            hs[nh, 4] = 0.0
             nh += 1
         if nh < 2 + pc:
             continue
