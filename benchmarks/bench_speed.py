@@ -11,8 +11,10 @@ Four tables, one JSON (``benchmarks/results/speed.json``):
    time is the whole run (load, mesh, direct, solve, render, store and files), its solve and
    render apart; the path tracer's is its render (its scene setup is milliseconds).
 2. **Start-up**: ``import daskrad.cli`` and ``import daskrad.run`` (``-X importtime``, in a
-   fresh interpreter), ``daskrad --version`` and ``daskrad info`` (wall, fresh process), and
-   the cold start in an empty numba cache (``NUMBA_CACHE_DIR``): ``daskrad warmup`` (what
+   fresh interpreter), ``daskrad --version`` and ``daskrad info`` (wall, fresh process), the
+   Cornell box's whole command through :func:`daskrad.cli.entry` against :func:`daskrad.cli.main`
+   alone (the exit's collection, :func:`exit_pair`), and the cold start in an empty numba
+   cache (``NUMBA_CACHE_DIR``): ``daskrad warmup`` (what
    ``make install`` runs), the first run after it and a warm run (the issue's bound: first ≤ 2×
    warm).
 3. **Workers**: whole converging runs (re-shots included, ``WORKER_PASSES`` alternated passes,
@@ -184,13 +186,41 @@ def _wall(cmd: list[str], env: dict | None = None, repeats: int = 3) -> float:
     return float(np.median(times))
 
 
+#: ``python -m daskrad`` without :func:`daskrad.cli.entry`'s frozen exit: :func:`~daskrad.cli.main`
+#: as the command ran it before, the other side of the exit's measure (:func:`startup`).
+_PLAIN_MAIN = "import sys; from daskrad.cli import main; sys.exit(main(sys.argv[1:]))"
+
+
+def exit_pair(repeats: int = 5) -> dict:
+    """Whole command-line runs of the Cornell box (``-q``, 256 × 256, in-process and with
+    ``--workers 2``) through :func:`daskrad.cli.entry` (the command: the interpreter's last
+    collection skipped) and through :func:`daskrad.cli.main` alone, alternated, medians of
+    ``repeats``: the process's wall seconds and their ratio."""
+    out = {}
+    with tempfile.TemporaryDirectory(prefix="daskrad-exit-") as tmp:
+        for label, extra in (("in-process", []), ("2 workers", ["--workers", "2",
+                                                               "--dashboard", "127.0.0.1:0"])):
+            args = ["run", str(CORNELL), "-o", str(Path(tmp) / "c.exr"), "-q", *extra]
+            sides = {"entry": [], "main": []}
+            for _ in range(repeats):
+                sides["entry"].append(_wall(_python() + ["-m", "daskrad", *args], repeats=1))
+                sides["main"].append(_wall(_python() + ["-c", _PLAIN_MAIN, *args], repeats=1))
+            e, m = float(np.median(sides["entry"])), float(np.median(sides["main"]))
+            out[f"run {label}, main s"] = m
+            out[f"run {label}, entry s"] = e
+            out[f"run {label}, main / entry"] = m / e
+    return out
+
+
 def startup(cold: bool) -> dict:
-    """Import times, CLI start-up, and (``cold``) the cold start in an empty numba cache."""
+    """Import times, CLI start-up, the command's exit (:func:`exit_pair`) and (``cold``) the
+    cold start in an empty numba cache."""
     daskrad = _python() + ["-m", "daskrad"]
     out = {"import daskrad.cli ms": _import_ms("daskrad.cli"),
            "import daskrad.run ms": _import_ms("daskrad.run"),
            "daskrad --version s": _wall(daskrad + ["--version"]),
-           "daskrad info s": _wall(daskrad + ["info", str(CORNELL)])}
+           "daskrad info s": _wall(daskrad + ["info", str(CORNELL)]),
+           **exit_pair()}
     if cold:
         with tempfile.TemporaryDirectory(prefix="daskrad-cold-") as tmp:
             env = _env(NUMBA_CACHE_DIR=str(Path(tmp) / "numba"))
@@ -282,7 +312,7 @@ def main(argv: list[str] | None = None) -> dict:
     result["startup"] = start
     print("\nStart-up")
     for k, v in start.items():
-        print(f"  {k:<28}{v:>9.2f}")
+        print(f"  {k:<34}{v:>9.2f}")
 
     if quick:
         scenes, size, cap = [CORNELL], QUICK_ELEMENT_SIZE, QUICK_ITERATIONS

@@ -1,5 +1,5 @@
 import sys
 
-from daskrad.cli import main
+from daskrad.cli import entry
 
-sys.exit(main())
+sys.exit(entry())
