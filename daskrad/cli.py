@@ -267,11 +267,15 @@ def entry(argv: list[str] | None = None) -> int:
     are closed and the threads left are idle; what the interpreter still does at exit is one
     full collection over every object the run made (numba's types and kernels, the mesh,
     Dask's state), only to free memory the system takes back at once. Frozen objects are left
-    out of it; they are still freed by reference counting as the modules are cleared, and
-    ``atexit`` handlers and ``weakref.finalize`` run as before. Measured (the time from the end
-    of ``main`` to the end of the process, less a bare interpreter's start): the Cornell box
-    0.15–0.19 → 0.03 s, with ``--workers 2`` 0.32–0.47 → 0.05 s (``bench_speed``'s start-up
-    table measures both). Not in :func:`main` itself, which tests call in one long process."""
+    out of it: those reference counting frees as the modules are cleared are freed as before,
+    those in reference cycles are never finalized (their ``__del__`` and weakref callbacks do
+    not run; the system takes their memory). Nothing daskrad leaves at that point relies on
+    one: files are closed in ``with`` blocks, executors and clusters are closed explicitly,
+    and ``atexit`` handlers (``weakref.finalize`` with ``atexit=True``) run as before.
+    Measured (the time from the end of ``main`` to the end of the process, less a bare
+    interpreter's start): the Cornell box 0.15–0.19 → 0.03 s, with ``--workers 2``
+    0.32–0.47 → 0.05 s (``bench_speed.exit_pair`` measures whole commands both ways). Not
+    in :func:`main` itself, which tests call in one long process."""
     code = main(argv)
     gc.freeze()
     return code

@@ -312,8 +312,10 @@ def _free_rays(grid, e, q):
 def test_faces_hide_declines_when_the_eye_is_behind_the_light():
     # A vertex within off of the light's plane whose eye e = p + off n lies just behind it
     # (a tilted normal): the light's edge rule t < 1 - 2 off / h would pass every crossing
-    # if h < 0 were let through (c1 > 1), so a wall beyond the light and a small tile by one
-    # corner would "hide" a light that 666 of 1600 shadow rays reach. The proof must decline.
+    # if h < 0 were let through (c1 > 1), so a wall beyond the light (the tile beside one
+    # corner takes no part) would "hide" a light that 666 of 1600 shadow rays reach. The
+    # several-faces proof must decline (union 4; with union 0 face_proves decides, which
+    # already refused h < 0).
     wall = [[0.4, -1, -1], [3.4, 2, -1], [3.4, 2, 1], [0.4, -1, 1]]     # x = y + 1.4
     tile = [[0.99, 0.48, -0.02], [0.99, 0.52, -0.02], [0.99, 0.52, 0.02], [0.99, 0.48, 0.02]]
     tris, faces = _faces([wall, tile])
@@ -332,17 +334,18 @@ def test_faces_hide_declines_when_the_eye_is_behind_the_light():
         assert face_hides(grid, faces, *e, n, light, 4, en, off, hz, -1, union) == -1
 
 
-@pytest.mark.parametrize("gap_eps", [150.0, 1.5])
+@pytest.mark.parametrize("gap_eps", [150.0, 2.2, 1.9, 1.5])
 def test_faces_hide_counts_the_edge_tolerance_in_the_face_plane(gap_eps):
     # Two boards in z = 0 with a slit gap_eps * eps wide at x = 1, seen at a grazing angle
     # (eye 0.01 above, 2 away) by a light beyond. The ray test closes a slit narrower than
-    # 2 eps (a hit within eps of a triangle's edge counts), so 1.5 eps is proved hidden, no
-    # ray through; 150 eps is open: the edges' margin must be eps within the boards' plane,
-    # not eps from the plane through the eye and the edge (that is ~200 eps in the board at
-    # this angle), so the proof declines.
+    # 2 eps (a hit within eps of a triangle's edge counts), so 1.5 and 1.9 eps are proved
+    # hidden, no ray through; 2.2 and 150 eps are open: the edges' margin must be eps within
+    # the boards' plane (~100 eps per edge at this angle when it was eps from the plane
+    # through the eye and the edge, closing slits up to ~200 eps), so the proof declines.
+    # The slit's edges are 3 long (not 1), so a margin missing the edge's length shows.
     def boards(g):
-        return _faces([[[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]],
-                       [[1 + g, 0, 0], [2, 0, 0], [2, 1, 0], [1 + g, 1, 0]]])
+        return _faces([[[0, -1, 0], [1, -1, 0], [1, 2, 0], [0, 2, 0]],
+                       [[1 + g, -1, 0], [2, -1, 0], [2, 2, 0], [1 + g, 2, 0]]])
 
     g = gap_eps * build_grid(np.ascontiguousarray(boards(0.0)[0])).eps
     tris, faces = boards(g)
