@@ -186,9 +186,11 @@ def _wall(cmd: list[str], env: dict | None = None, repeats: int = 3) -> float:
     return float(np.median(times))
 
 
-#: ``python -m daskrad`` without :func:`daskrad.cli.entry`'s frozen exit: :func:`~daskrad.cli.main`
-#: as the command ran it before, the other side of the exit's measure (:func:`startup`).
-_PLAIN_MAIN = "import sys; from daskrad.cli import main; sys.exit(main(sys.argv[1:]))"
+#: The two sides of the exit's measure (:func:`exit_pair`), launched alike: the command as it
+#: is (:func:`daskrad.cli.entry`, the frozen exit) and :func:`daskrad.cli.main` alone, as the
+#: command ran before.
+_SIDES = {"entry": "import sys; from daskrad.cli import entry; sys.exit(entry(sys.argv[1:]))",
+          "main": "import sys; from daskrad.cli import main; sys.exit(main(sys.argv[1:]))"}
 
 
 def exit_pair(repeats: int = 5) -> dict:
@@ -202,13 +204,11 @@ def exit_pair(repeats: int = 5) -> dict:
                                                                "--dashboard", "127.0.0.1:0"])):
             args = ["run", str(CORNELL), "-q", *extra]
             sides = {"entry": [], "main": []}
-            code = {"entry": _PLAIN_MAIN.replace("main(", "entry(").replace(
-                        "import main", "import entry"), "main": _PLAIN_MAIN}
             for n in range(repeats):
                 # ABBA order, each run its own output (none replaces an earlier one)
                 for side in (("entry", "main") if n % 2 == 0 else ("main", "entry")):
                     dest = ["-o", str(Path(tmp) / f"{side}{n}{len(extra)}.exr")]
-                    sides[side].append(_wall(_python() + ["-c", code[side], *args, *dest],
+                    sides[side].append(_wall(_python() + ["-c", _SIDES[side], *args, *dest],
                                              repeats=1))
             e, m = float(np.median(sides["entry"])), float(np.median(sides["main"]))
             out[f"run {label}, main s"] = m
