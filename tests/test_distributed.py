@@ -489,3 +489,21 @@ def test_one_point_rows_give_the_same_bits_on_any_executor_and_stay_within_the_f
         np.testing.assert_array_equal(sol.radiosity, results[0].radiosity)
         np.testing.assert_array_equal(sol.unshot, results[0].unshot)
     assert np.abs(results[0].radiosity * (1.0 - sc.RHO) - 1.0).max() < 0.01
+
+
+def test_a_spawned_process_reports_its_own_peak_memory_not_its_parents():
+    # Linux keeps getrusage's ru_maxrss across execve, so a worker started by spawn reported
+    # the client's peak (both `--processes` workers showed the benchmark's 827 MiB). A parent
+    # that touched 400 MiB starts a fresh interpreter: the child's peak must be far below it.
+    code = (
+        "import subprocess, sys\n"
+        "from daskrad.distributed.memory import peak_mib\n"
+        "block = bytearray(400 * 2**20)\n"
+        "block[::4096] = b'x' * len(block[::4096])\n"
+        "child = subprocess.run([sys.executable, '-c', 'from daskrad.distributed.memory import "
+        "peak_mib; print(peak_mib())'], capture_output=True, text=True, check=True)\n"
+        "print(peak_mib(), float(child.stdout))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=REPO, timeout=120).stdout
+    parent, child = map(float, out.split())
+    assert parent > 400 and child < parent - 300
