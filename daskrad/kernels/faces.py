@@ -242,7 +242,7 @@ def faces_hide(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, k0, extr
     nc = np.zeros(_PIECES, np.int64)
     rest = np.empty((_CORNERS, 3))
     tmp = np.empty((_CORNERS, 3))
-    hs = np.empty((6, 5))
+    hs = np.empty((6, 4))
     used = np.empty(count + extra, np.int64)
     for a in range(count):
         for x in range(3):
@@ -297,7 +297,7 @@ def _less_face(grid, faces, k, ex, ey, ez, n, c1, hz, cur, cc, npc, hs, nxt, nc,
                tiny):
     """The pieces ``cur[:npc]`` (``cc`` corners each) less the part of the light the face of
     grid triangle ``k`` hides (:func:`faces_hide`); returns their new count, -1 when they do
-    not fit. ``hs (6, 5)``, ``nxt``, ``nc``, ``rest``, ``tmp``: scratch."""
+    not fit. ``hs (6, 4)``, ``nxt``, ``nc``, ``rest``, ``tmp``: scratch."""
     f = faces.tri_face[k]
     fx, fy, fz, fd = _plane(grid.triangles[k], ex, ey, ez)
     if fx == 0.0 and fy == 0.0 and fz == 0.0:
@@ -306,19 +306,18 @@ def _less_face(grid, faces, k, ex, ey, ez, n, c1, hz, cur, cc, npc, hs, nxt, nc,
         return npc
     sg = 1.0 if fd > 0.0 else -1.0
     afd = abs(fd)
-    # hs[j]: the half-space hs[j, :3] · (q − e) + hs[j, 3] ≥ −hs[j, 4] (hs[j, 4]: a margin)
+    # hs[j]: the half-space hs[j, :3] · (q − e) + hs[j, 3] ≥ 0 (the edges' eps margin is in
+    # their normals, below)
     # the crossing more than 2 off before the light: t < c1
     hs[0, 0] = c1 * sg * fx
     hs[0, 1] = c1 * sg * fy
     hs[0, 2] = c1 * sg * fz
     hs[0, 3] = -afd
-    hs[0, 4] = 0.0
     # the crossing above the horizon: t n·(q − e) > hz
     hs[1, 0] = afd * n[0] - hz * sg * fx
     hs[1, 1] = afd * n[1] - hz * sg * fy
     hs[1, 2] = afd * n[2] - hz * sg * fz
     hs[1, 3] = 0.0
-    hs[1, 4] = 0.0
     for q in range(faces.start[f], faces.start[f + 1]):
         pc = faces.count[q]
         pcs = faces.corners[q]
@@ -350,17 +349,16 @@ def _less_face(grid, faces, k, ex, ey, ez, n, c1, hz, cur, cc, npc, hs, nxt, nc,
             wl = np.sqrt(wx * wx + wy * wy + wz * wz)
             if not wl > 0.0:
                 break                   # the eye in the edge's line: the piece hides nothing
-            ex_ = pcs[b, 0] - pcs[a, 0]
-            ey_ = pcs[b, 1] - pcs[a, 1]
-            ez_ = pcs[b, 2] - pcs[a, 2]
-            m = grid.eps * np.sqrt(ex_ * ex_ + ey_ * ey_ + ez_ * ez_) / wl * sg  # eps/ρ sg
+            lx = pcs[b, 0] - pcs[a, 0]
+            ly = pcs[b, 1] - pcs[a, 1]
+            lz = pcs[b, 2] - pcs[a, 2]
+            m = grid.eps * np.sqrt(lx * lx + ly * ly + lz * lz) / wl * sg  # eps/ρ sg
             if wx * (gx - ex) + wy * (gy - ey) + wz * (gz - ez) < 0.0:
                 wl = -wl
             hs[nh, 0] = wx / wl + m * fx
             hs[nh, 1] = wy / wl + m * fy
             hs[nh, 2] = wz / wl + m * fz
             hs[nh, 3] = 0.0
-            hs[nh, 4] = 0.0
             nh += 1
         if nh < 2 + pc:
             continue
@@ -403,15 +401,15 @@ def _less_face(grid, faces, k, ex, ey, ez, n, c1, hz, cur, cc, npc, hs, nxt, nc,
 @jit
 def _clip(src, m, hs, ex, ey, ez, side, dst):
     """Sutherland–Hodgman: the part of the convex polygon ``src[:m]`` inside (``side`` 1:
-    ``hs[:3] · (x − e) + hs[3] ≥ −hs[4]``) or outside (``side`` −1: ``≤ −hs[4]``) a
+    ``hs[:3] · (x − e) + hs[3] ≥ 0``) or outside (``side`` −1: ``≤ 0``) a
     half-space, written to ``dst``; its corner count, -1 when it does not fit."""
     nd = 0
     for a in range(m):
         b = a + 1 if a + 1 < m else 0
         sa = side * (hs[0] * (src[a, 0] - ex) + hs[1] * (src[a, 1] - ey)
-                     + hs[2] * (src[a, 2] - ez) + hs[3] + hs[4])
+                     + hs[2] * (src[a, 2] - ez) + hs[3])
         sb = side * (hs[0] * (src[b, 0] - ex) + hs[1] * (src[b, 1] - ey)
-                     + hs[2] * (src[b, 2] - ez) + hs[3] + hs[4])
+                     + hs[2] * (src[b, 2] - ez) + hs[3])
         if sa >= 0.0:
             if nd >= dst.shape[0]:
                 return -1
