@@ -392,8 +392,10 @@ def lambert_composed(points, normals, vertices, elem_verts):
 def test_item_buffer_matches_project_fill_polygon(cases, case, plane_depth):
     verts, elems, points, normals = cases[case]
     for r, edge in ((96, EDGE), (61, 0.3)):  # fine splits, coarse splits, odd R
-        won, covered, n_disc, visible = hemisphere_visibility(points, normals, verts, elems, r,
-                                                              edge, plane_depth, HORIZON)
+        enrm, eoff = element_planes(verts, elems)
+        won, covered, n_disc, visible = hemisphere_visibility(points, normals, verts, elems,
+                                                              enrm, eoff, r, edge, plane_depth,
+                                                              HORIZON)
         ref = item_buffer_composed(points, normals, verts, elems, r, edge, plane_depth, HORIZON)
         assert n_disc == ref[2]
         assert np.array_equal(covered, ref[1])
@@ -420,6 +422,7 @@ def test_lambert_batch_matches_lambert_polygon(cases, case, rng):
     ref = lambert_composed(points, normals, verts, elems)
     assert np.array_equal(lambert_shots(points, normals, verts, elems), ref)
     mask = rng.random(ref.shape) < 0.5
-    assert np.array_equal(lambert_masked(points, normals, verts, elems, mask),
+    enrm, eoff = element_planes(verts, elems)
+    assert np.array_equal(lambert_masked(points, normals, verts, elems, enrm, eoff, mask),
                           np.where(mask, ref, 0.0))
     assert (ref > 0).any()

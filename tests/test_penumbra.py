@@ -406,3 +406,23 @@ def test_the_near_field_kernel_follows_reciprocity_visibility_and_the_rows_share
     assert checked >= 3                 # the correction moved rows, and was held to them
     if sampled and case == "cornell":
         assert behind > 0               # some sample point lay behind a near receiver
+
+
+@pytest.mark.parametrize("method", sorted(formfactor.METHODS))
+def test_the_contexts_element_planes_give_the_rows_of_planes_computed_per_row(method):
+    # make_context computes the elements' planes once (they were computed twice a row); a
+    # context without them (made by hand) computes them in each row: the same bits, sampled
+    # rows and one-point rows, on the fin scene (occluders, penumbra sampling)
+    import dataclasses
+
+    from daskrad.kernels.geometry import element_planes
+
+    h, ctx = _context(sc.degenerate_scenes()["non-manifold edge (fin)"], method=method)
+    normal, offset = element_planes(h.vertices, h.elem_verts)
+    assert np.array_equal(ctx.plane_normal, normal) and np.array_equal(ctx.plane_offset, offset)
+    bare = dataclasses.replace(ctx, plane_normal=None, plane_offset=None)
+    for p in range(h.n_patches):
+        for sampled in (True, False):
+            row = shooting.shoot_row(ctx, p, sampled=sampled)
+            assert np.array_equal(row, shooting.shoot_row(bare, p, sampled=sampled))
+    assert row.sum() > 0

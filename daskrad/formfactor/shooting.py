@@ -45,7 +45,7 @@ import numpy as np
 
 from daskrad import formfactor, tolerances
 from daskrad.kernels.blockers import UNKNOWN, nearest_blocker
-from daskrad.kernels.geometry import orthonormal_basis, scene_diagonal
+from daskrad.kernels.geometry import element_planes, orthonormal_basis, scene_diagonal
 from daskrad.kernels.grid import Grid, closest_hit
 from daskrad.kernels.nearfield import near_field, receiver_factors
 from daskrad.mesh.types import Hierarchy
@@ -102,8 +102,10 @@ class ShootContext:
     the voxel grid over the elements' triangles and ``tri_element : (T,) int`` the element of
     each of its triangles: the mesh's own (:class:`daskrad.preprocess.Mesh`), built once.
     ``diagonal`` is the scene's bounding-box diagonal (0 in a context made by hand: computed
-    where needed). :func:`make_context` checks the geometry once; the rows trust it
-    (:func:`daskrad.formfactor.checked_geometry`).
+    where needed). ``plane_normal : (E, 3)`` and ``plane_offset : (E,)`` are the elements'
+    planes (:func:`daskrad.kernels.geometry.element_planes`), once per mesh rather than twice
+    a row (None in a context made by hand: computed by each row). :func:`make_context` checks
+    the geometry once; the rows trust it (:func:`daskrad.formfactor.checked_geometry`).
     """
 
     vertices: np.ndarray
@@ -129,6 +131,8 @@ class ShootContext:
     tri_element: np.ndarray | None = None
     gap: float = 0.0
     diagonal: float = 0.0       # the scene's bounding-box diagonal (0: not given)
+    plane_normal: np.ndarray | None = None
+    plane_offset: np.ndarray | None = None
 
 
 def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None = None,
@@ -150,6 +154,7 @@ def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None =
         return np.linalg.norm(corners - centroid[:, None, :], axis=2).max(axis=1)
 
     diagonal = scene_diagonal(h.vertices)
+    plane_normal, plane_offset = element_planes(h.vertices, h.elem_verts)
     eps = tolerances.COPLANAR * diagonal
     gap = tolerances.TWO_SIDED_GAP * diagonal
     return ShootContext(
@@ -163,6 +168,7 @@ def make_context(h: Hierarchy, method: str, resolution: int, grid: Grid | None =
         polygon_two_sided=two_sided_polygons(h, eps, gap), eps=eps, gap=gap,
         method=method, resolution=resolution, options=dict(options),
         grid=grid, tri_element=np.asarray(tri_element), diagonal=diagonal,
+        plane_normal=plane_normal, plane_offset=plane_offset,
     )
 
 
@@ -309,9 +315,10 @@ def shoot_row(ctx: ShootContext, p: int, sampled: bool = True) -> np.ndarray:
     if not sampled:
         points, weights = one_point(points, weights)
     normals = np.repeat(ctx.patch_normal[p][None], len(points), axis=0)
+    planes = None if ctx.plane_normal is None else (ctx.plane_normal, ctx.plane_offset)
     rows = formfactor.shooter_rows(points, normals, ctx.vertices, ctx.elem_verts,
                                    method=ctx.method, resolution=ctx.resolution,
-                                   grid=ctx.grid, **ctx.options)
+                                   grid=ctx.grid, planes=planes, **ctx.options)
     row = rows[0] if len(points) == 1 else _average(rows, weights)
     # near receivers: F_ij by reciprocity from F_ji, the exact factor from each to the whole
     # shooter polygon (Lambert, averaged over the receiver where it is close), times the

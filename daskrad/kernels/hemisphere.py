@@ -702,9 +702,11 @@ def edge_capacity(edge_angle):
 
 
 @jit
-def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edge_angle,
-                          plane_depth, horizon_eps):
-    """:func:`hemisphere_shots` plus ``visible : (S, E) float64`` in ``[0, 1]``.
+def hemisphere_visibility(points, normals, vertices, elem_verts, enrm, eoff, resolution,
+                          edge_angle, plane_depth, horizon_eps):
+    """:func:`hemisphere_shots` plus ``visible : (S, E) float64`` in ``[0, 1]``; ``enrm (E, 3),
+    eoff (E,)`` are the elements' planes (:func:`element_planes`), computed once per mesh by
+    the caller (per call they were an eighth of a one-point row of a 114k-element office).
 
     ``visible[s, e]`` is set for every element that faces the point and reaches above the
     horizon (0 for the culled ones): the fraction of the 2 x 2 pixels around the direction of
@@ -721,7 +723,6 @@ def hemisphere_visibility(points, normals, vertices, elem_verts, resolution, edg
     n_elem = elem_verts.shape[0]
     n_vert = vertices.shape[0]
     r = resolution
-    enrm, eoff = element_planes(vertices, elem_verts)
     hz = max(horizon_eps * scene_diagonal(vertices), 1e-300)
     centre, dz, n_disc = disc_pixels(r)
     # Buffers allocated once per call, reused by every shot and element.
@@ -788,9 +789,10 @@ def hemisphere_shots(points, normals, vertices, elem_verts, resolution, edge_ang
         Pixel centres inside the unit circle; every disc pixel weighs ``1/n_disc``, so the
         weights sum to exactly 1 (``Σ_j F_j <= 1``, ``= 1`` in a closed scene).
     """
+    enrm, eoff = element_planes(vertices, elem_verts)
     won, covered, n_disc, _ = hemisphere_visibility(points, normals, vertices, elem_verts,
-                                                    resolution, edge_angle, plane_depth,
-                                                    horizon_eps)
+                                                    enrm, eoff, resolution, edge_angle,
+                                                    plane_depth, horizon_eps)
     return won, covered, n_disc
 
 

@@ -41,23 +41,26 @@ def lambert_shots(points, normals, vertices, elem_verts):
         (ignoring every other element), 0 for back-facing elements and those wholly below the
         horizon.
     """
-    return _lambert(points, normals, vertices, elem_verts, np.ones((1, 1), dtype=np.bool_),
-                    False)
+    enrm, eoff = element_planes(vertices, elem_verts)
+    return _lambert(points, normals, vertices, elem_verts, enrm, eoff,
+                    np.ones((1, 1), dtype=np.bool_), False)
 
 
 @jit
-def lambert_masked(points, normals, vertices, elem_verts, mask):
-    """:func:`lambert_shots` only where ``mask : (S, E) bool`` is set, 0 elsewhere.
+def lambert_masked(points, normals, vertices, elem_verts, enrm, eoff, mask):
+    """:func:`lambert_shots` only where ``mask : (S, E) bool`` is set, 0 elsewhere;
+    ``enrm (E, 3), eoff (E,)``: the elements' planes
+    (:func:`daskrad.kernels.geometry.element_planes`), computed once per mesh by the caller.
 
     The anti-aliased hemisphere method multiplies Lambert's factor by a visible fraction, so it
     needs it only where that fraction is positive (hidden elements cost nothing). Where the mask
     is set the value is bit-identical to :func:`lambert_shots` (same code).
     """
-    return _lambert(points, normals, vertices, elem_verts, mask, True)
+    return _lambert(points, normals, vertices, elem_verts, enrm, eoff, mask, True)
 
 
 @jit
-def _lambert(points, normals, vertices, elem_verts, mask, use_mask):
+def _lambert(points, normals, vertices, elem_verts, enrm, eoff, mask, use_mask):
     """Body of :func:`lambert_shots` / :func:`lambert_masked`; ``mask`` read only when
     ``use_mask``.
 
@@ -69,7 +72,6 @@ def _lambert(points, normals, vertices, elem_verts, mask, use_mask):
     n_shot = points.shape[0]
     n_elem = elem_verts.shape[0]
     out = np.zeros((n_shot, n_elem))
-    enrm, eoff = element_planes(vertices, elem_verts)
     cx = np.empty(4)
     cy = np.empty(4)
     cz = np.empty(4)
