@@ -7,6 +7,7 @@ none (a convex room keeps the single centroid pass, bit for bit).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -14,6 +15,7 @@ import pytest
 
 from daskrad import formfactor
 from daskrad.formfactor import shooting
+from daskrad.kernels.geometry import element_planes
 from daskrad.mesh import build_hierarchy
 from daskrad.scene import box_scene
 from daskrad.scene.corners import real_corners
@@ -413,10 +415,6 @@ def test_the_contexts_element_planes_give_the_rows_of_planes_computed_per_row(me
     # make_context computes the elements' planes once (they were computed twice a row); a
     # context without them (made by hand) computes them in each row: the same bits, sampled
     # rows and one-point rows, on the fin scene (occluders, penumbra sampling)
-    import dataclasses
-
-    from daskrad.kernels.geometry import element_planes
-
     h, ctx = _context(sc.degenerate_scenes()["non-manifold edge (fin)"], method=method)
     normal, offset = element_planes(h.vertices, h.elem_verts)
     assert np.array_equal(ctx.plane_normal, normal) and np.array_equal(ctx.plane_offset, offset)
