@@ -507,3 +507,60 @@ def test_a_spawned_process_reports_its_own_peak_memory_not_its_parents():
                          check=True, cwd=REPO, timeout=120).stdout
     parent, child = map(float, out.split())
     assert parent > 400 and child < parent - 300
+
+
+def test_a_ctrl_c_as_a_dask_call_starts_prints_no_tornado_traceback(monkeypatch):
+    # distributed's sync() adds a cancel callback when the waiting thread is interrupted; if
+    # that happens before the call created its future, cancel reads an unassigned variable
+    # and tornado logs the NameError with a traceback (seen once in CI above daskrad's one
+    # line). Made deterministic here: the first wait raises KeyboardInterrupt at once.
+    import logging
+    import threading
+
+    import distributed.utils as du
+
+    from daskrad.distributed import dask_executor
+
+    class InterruptedWait(threading.Event):
+        def wait(self, timeout=None):
+            raise KeyboardInterrupt
+
+    class Records(logging.Handler):
+        def __init__(self):
+            super().__init__()
+            self.seen = []
+
+        def emit(self, record):
+            self.seen.append(record)
+
+    async def work():
+        return 1
+
+    def interrupt_a_call(runner):
+        with monkeypatch.context() as m:
+            m.setattr(du.threading, "Event", InterruptedWait)
+            with pytest.raises(KeyboardInterrupt):
+                du.sync(runner.loop, work)
+        du.sync(runner.loop, work)      # the loop has run the cancel callback after this
+
+    log = logging.getLogger("tornado.application")
+    records = Records()
+    log.addHandler(records)
+    had = dask_executor._CANCEL_RACE in log.filters
+    log.removeFilter(dask_executor._CANCEL_RACE)
+    runner = du.LoopRunner(asynchronous=False)
+    runner.start()
+    try:
+        interrupt_a_call(runner)
+        unfiltered = [r.exc_info[1] for r in records.seen]
+        records.seen.clear()
+        dask_executor._hush_cancel_race()
+        interrupt_a_call(runner)
+        logging.getLogger("tornado.application").error("another error")
+    finally:
+        runner.stop()
+        log.removeHandler(records)
+        if not had:
+            log.removeFilter(dask_executor._CANCEL_RACE)
+    assert len(unfiltered) == 1 and isinstance(unfiltered[0], NameError), unfiltered
+    assert [r.getMessage() for r in records.seen] == ["another error"]

@@ -469,6 +469,34 @@ def _dashboard(client, host: str | None = None) -> str | None:
     return f"http://{host or '127.0.0.1'}:{services['dashboard']}/status"
 
 
+class _CancelRace(logging.Filter):
+    """Drops tornado's report of a race in ``distributed.utils.sync``: a Ctrl-C in the
+    instant between a call's start and its future's creation makes the ``cancel`` callback
+    read the unassigned ``future`` (``NameError: cannot access free variable``), and tornado
+    logs that with a traceback on the event loop's thread, above daskrad's one line. The
+    interrupt itself still reaches the main thread and is reported there; nothing else that
+    tornado logs is dropped."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        exc = record.exc_info[1] if record.exc_info else None
+        if not isinstance(exc, NameError) or exc.__traceback__ is None:
+            return True
+        tb = exc.__traceback__
+        while tb.tb_next is not None:
+            tb = tb.tb_next
+        code = tb.tb_frame.f_code
+        return not (code.co_name == "cancel"
+                    and Path(code.co_filename).parts[-2:] == ("distributed", "utils.py"))
+
+
+_CANCEL_RACE = _CancelRace()
+
+
+def _hush_cancel_race() -> None:
+    """Installs :class:`_CancelRace` on tornado's callback logger, once per process."""
+    logging.getLogger("tornado.application").addFilter(_CANCEL_RACE)   # added once only
+
+
 def start_local(settings, store: Store | None) -> DaskExecutor:
     """``--workers N``: a LocalCluster of N workers with one thread each, its dashboard on
     ``settings.dashboard`` (loopback by default).
@@ -483,6 +511,7 @@ def start_local(settings, store: Store | None) -> DaskExecutor:
     import dask
     from distributed import Client, LocalCluster
 
+    _hush_cancel_race()
     routes = list(dask.config.get("distributed.scheduler.http.routes"))
     kinds = ({"processes": True, "host": "127.0.0.1", "env": {"NUMBA_NUM_THREADS": "1"}}
              if settings.processes else {"processes": False})
@@ -521,6 +550,7 @@ def connect_scheduler(settings, store: Store | None) -> DaskExecutor:
             "with --scheduler every worker opens the solution store itself, so the output "
             f"must be an absolute path on a shared file system (got {store.given}; "
             "e.g. -o /shared/run/out.exr)", store.given)
+    _hush_cancel_race()
     try:
         client = Client(settings.scheduler, timeout=settings.connect_timeout)
     except (OSError, TimeoutError) as err:
