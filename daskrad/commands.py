@@ -33,11 +33,13 @@ def settings_from_args(args) -> Settings:
 def resume_hint(output: str) -> str:
     """What an interrupted run of ``output`` leaves: a store ``--resume`` continues (a new
     run's partial store, or the finished one of an earlier run), or none yet."""
-    from daskrad.output import Outputs, is_store
+    from daskrad.output import Outputs, has_checkpoint, is_store
 
     outs = Outputs(Path(output))
-    if is_store(outs.partial) or is_store(outs.store):
+    if has_checkpoint(outs.partial) or (not is_store(outs.partial) and is_store(outs.store)):
         return "the last checkpoint is kept (use --resume)"
+    if is_store(outs.partial):
+        return "it stopped before its first checkpoint: nothing to resume yet"
     return "it stopped before its solution store was written: nothing to resume"
 
 
@@ -105,7 +107,7 @@ def info_text(args) -> str:
         "subdivision)",
         f"vertices    {len(h.vertices)}",
         f"materials   {len(scene.materials)}: {', '.join(scene.materials.names)}",
-        f"emitters    {int(scene.emitting.sum())} polygons",
+        f"emitters    {_count(int(scene.emitting.sum()), 'polygon')}",
         f"lights      {len(scene.point_lights)} point, {len(scene.directional_lights)} "
         "directional",
         f"bounds      [{lo[0]:.4g}, {lo[1]:.4g}, {lo[2]:.4g}] .. "
@@ -114,6 +116,11 @@ def info_text(args) -> str:
         f"{len(tris)} triangles",
     ]
     return "\n".join(lines)
+
+
+def _count(n: int, noun: str) -> str:
+    """``1 polygon``, ``2 polygons``."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
 
 def _camera_of(args, stored):

@@ -21,6 +21,7 @@ from pathlib import Path
 from daskrad.direct import DirectLight
 from daskrad.errors import OptionError
 from daskrad.io import write_exr, write_png, write_report
+from daskrad.io.files import check_directory
 from daskrad.io.image import written_by_daskrad
 from daskrad.render import Image
 from daskrad.scene.types import Scene
@@ -34,14 +35,28 @@ STORE_FORMAT_PREFIX = "daskrad-solution/"
 def is_store(path: Path) -> bool:
     """Whether ``path`` is a directory holding a daskrad solution store (a real directory,
     not a link, whose root metadata names daskrad's format)."""
-    meta = path / "zarr.json"
-    if path.is_symlink() or not path.is_dir() or not meta.is_file():
-        return False
+    return store_attributes(path) is not None
+
+
+def has_checkpoint(path: Path) -> bool:
+    """Whether the store at ``path`` holds a checkpoint a ``--resume`` continues from (a run
+    stopped before its first one left a store with none)."""
+    return (store_attributes(path) or {}).get("checkpoint") is not None    # a slot: 0 is one
+
+
+def store_attributes(path: Path) -> dict | None:
+    """The root attributes of the daskrad store at ``path`` (:func:`is_store`), else None."""
+    meta = Path(path) / "zarr.json"
+    if Path(path).is_symlink() or not Path(path).is_dir() or not meta.is_file():
+        return None
     try:
         attrs = json.loads(meta.read_text()).get("attributes", {})
     except (OSError, ValueError, AttributeError):
-        return False
-    return str(attrs.get("format", "")).startswith(STORE_FORMAT_PREFIX)
+        return None
+    if not isinstance(attrs, dict) or \
+            not str(attrs.get("format", "")).startswith(STORE_FORMAT_PREFIX):
+        return None
+    return attrs
 
 
 @dataclass(frozen=True)
@@ -66,10 +81,7 @@ class Outputs:
         output = Path(output)
         if output.suffix.lower() != ".exr":
             raise OptionError(f"the output must end in .exr, got {output.name}")
-        if not output.parent.is_dir():
-            raise OptionError(f"no such directory for the output: {output.parent}")
-        if not os.access(output.parent, os.W_OK | os.X_OK):
-            raise OptionError("cannot write in this directory", output.parent)
+        check_directory(output.parent, "output")
         outputs = cls(output)
         for path in (outputs.exr, outputs.png, outputs.json):
             if path.is_symlink() or (path.exists() and not path.is_file()):

@@ -87,6 +87,9 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         begin = store.begin(mesh.hierarchy, mesh.reflectance, solve.start(light))
         began = True
         resumed_from = begin.iteration if resume else None    # the solve may update begin
+        if resume and progress:
+            output.note(f"resuming from shot {begin.iteration}" if begin.iteration else
+                        "resuming: the store holds no shot yet, so the solve starts afresh")
         sol = solve.radiosity(light, settings, ex, begin, on_batch=watch)         # 3
         watch.finish(sol)
         bar.close()
@@ -153,9 +156,15 @@ def _announce(executor, settings: Settings) -> None:
     """Print the dashboard's address when there is one (and whether others can reach it)."""
     link = executor.dashboard_link
     if link:
-        print(f"daskrad: dashboard {link} (progress: {link.rsplit('/', 1)[0]}/daskrad)",
+        host, _, port = settings.dashboard.rpartition(":")
+        # a busy port: Dask serves the dashboard on another (its own warning is filtered,
+        # daskrad.distributed.dask_executor.start_local), and this line says so
+        moved = (f"; port {port} was in use" if settings.scheduler is None
+                 and port not in ("0", "") and not link.split("/")[2].endswith(f":{port}")
+                 else "")
+        print(f"daskrad: dashboard {link} (progress: {link.rsplit('/', 1)[0]}/daskrad{moved})",
               file=sys.stderr)
-        host = settings.dashboard.rpartition(":")[0].strip("[]")
+        host = host.strip("[]")
         if host not in ("127.0.0.1", "localhost", "::1") and not host.startswith("127."):
             output.warn(f"the dashboard listens on {host or 'every interface'} "
                         f"({settings.dashboard}), not only on this machine")

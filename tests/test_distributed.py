@@ -513,7 +513,8 @@ def test_a_ctrl_c_as_a_dask_call_starts_prints_no_tornado_traceback(monkeypatch)
     # distributed's sync() adds a cancel callback when the waiting thread is interrupted; if
     # that happens before the call created its future, cancel reads an unassigned variable
     # and tornado logs the NameError with a traceback (seen once in CI above daskrad's one
-    # line). Made deterministic here: the first wait raises KeyboardInterrupt at once.
+    # line). Made deterministic here: the loop is held until the call was interrupted, so it
+    # runs the call's first step, then the cancel, then the step that makes the future.
     import logging
     import threading
 
@@ -524,6 +525,12 @@ def test_a_ctrl_c_as_a_dask_call_starts_prints_no_tornado_traceback(monkeypatch)
     class InterruptedWait(threading.Event):
         def wait(self, timeout=None):
             raise KeyboardInterrupt
+
+    class Threading:            # sync()'s threading module with an Event whose wait raises
+        Event = InterruptedWait
+
+        def __getattr__(self, name):
+            return getattr(threading, name)
 
     class Records(logging.Handler):
         def __init__(self):
@@ -537,10 +544,15 @@ def test_a_ctrl_c_as_a_dask_call_starts_prints_no_tornado_traceback(monkeypatch)
         return 1
 
     def interrupt_a_call(runner):
-        with monkeypatch.context() as m:
-            m.setattr(du.threading, "Event", InterruptedWait)
-            with pytest.raises(KeyboardInterrupt):
-                du.sync(runner.loop, work)
+        gate = threading.Event()
+        runner.loop.add_callback(gate.wait, 30)      # the loop waits until the call is stopped
+        try:
+            with monkeypatch.context() as m:
+                m.setattr(du, "threading", Threading())
+                with pytest.raises(KeyboardInterrupt):
+                    du.sync(runner.loop, work)
+        finally:
+            gate.set()
         du.sync(runner.loop, work)      # the loop has run the cancel callback after this
 
     log = logging.getLogger("tornado.application")

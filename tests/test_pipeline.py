@@ -272,7 +272,31 @@ def test_an_output_on_a_special_file_system_is_one_line(tmp_path):
     proc = cli_run("-o", "/proc/out.exr")
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and "/proc" in lines[0], proc.stderr
+    # the directory given, not a hidden file daskrad would have made in it (its lock)
+    assert lines == [lines[0]] and lines[0].startswith(
+        "daskrad: error: /proc: cannot write in this directory ("), proc.stderr
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs Linux's /proc")
+def test_every_output_in_a_directory_that_refuses_files_names_the_directory(tmp_path):
+    # root may "access" /proc for writing, yet no file can be made there: the check makes one
+    from daskrad.io.mesh import write_mesh
+    from daskrad.output import Outputs
+
+    tri = (np.eye(3), np.array([[0, 1, 2]]), np.ones((3, 3)))
+    for attempt in (lambda: Outputs.of("/proc/x.exr"),
+                    lambda: write_mesh("/proc/e.ply", *tri)):
+        with pytest.raises(OptionError) as info:
+            attempt()
+        assert info.value.path == "/proc"
+        assert info.value.message.startswith("cannot write in this directory (")
+    afile = tmp_path / "x.obj"
+    afile.write_text("")
+    with pytest.raises(OptionError, match="not a directory for the output"):
+        Outputs.of(afile / "a.exr")
+    with pytest.raises(OptionError, match="no such directory for the export"):
+        write_mesh(tmp_path / "none" / "e.ply", *tri)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.obj"]    # no probe left
 
 
 def test_a_full_disk_is_one_line_and_leaves_nothing_half_written(earlier, tmp_path, capsys,
@@ -329,6 +353,24 @@ def test_a_dashboard_open_to_the_network_is_said(tmp_path, capsys):
     assert "dashboard listens" not in capsys.readouterr().err
 
 
+def test_a_busy_dashboard_port_is_one_line_naming_it(tmp_path, capsys, recwarn):
+    # Dask serves the dashboard on another port and warned in several lines of its own
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        run(CORNELL, tmp_path / "c.exr",
+            SMALL.replace(workers=2, dashboard=f"127.0.0.1:{port}"), progress=False)
+    err = capsys.readouterr().err
+    line, = [x for x in err.splitlines() if x.startswith("daskrad: dashboard")]
+    assert line.endswith(f"/daskrad; port {port} was in use)"), err
+    assert f":{port}/" not in line
+    assert "already in use" not in err
+    assert not [w for w in recwarn if "already in use" in str(w.message)]
+
+
 def test_a_resume_with_a_relative_output_keeps_its_store(tmp_path):
     # a resumed run solves in its finished store, named relatively on the command line and
     # absolutely inside: it must not be swapped out for itself (found trying the README)
@@ -356,3 +398,11 @@ def test_a_resume_with_a_relative_output_keeps_its_store(tmp_path):
     # continued from the last state of the first run a straight run passes through (its stop
     # inside a batch is not one: the batch is applied whole in a longer run)
     assert 0 < report["resumed_from"] <= shots < report["iterations"]
+
+
+def test_info_counts_in_words_that_agree(capsys):
+    from daskrad import cli
+
+    assert cli.main(["info", str(CORNELL)]) == 0
+    out = capsys.readouterr().out
+    assert "\nemitters    1 polygon\n" in out, out          # the box's one light

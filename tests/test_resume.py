@@ -123,22 +123,30 @@ def test_ctrl_c_in_a_terminal_with_worker_processes_is_one_line(uninterrupted, t
     assert_same_run(uninterrupted, out)
 
 
-def test_an_interrupted_run_says_whether_there_is_anything_to_resume(tmp_path):
+def test_an_interrupted_run_says_whether_there_is_anything_to_resume(uninterrupted, tmp_path):
+    import shutil
+
     from daskrad.commands import resume_hint
 
     out = tmp_path / "x.exr"
-    assert "nothing to resume" in resume_hint(str(out))      # stopped before its store
-    Store(Outputs(out).partial, SETTINGS).open()
+    assert "store was written: nothing to resume" in resume_hint(str(out))   # before its store
+    partial = Outputs(out).partial
+    Store(partial, SETTINGS).open()          # a store, but stopped before its first checkpoint
+    assert resume_hint(str(out)).endswith("first checkpoint: nothing to resume yet")
+    shutil.rmtree(partial)
+    shutil.copytree(uninterrupted.with_suffix(".zarr"), partial)     # one with a checkpoint
     assert "--resume" in resume_hint(str(out))
 
 
-def test_resume_of_a_finished_run_shoots_nothing_more(uninterrupted, tmp_path):
+def test_resume_of_a_finished_run_shoots_nothing_more(uninterrupted, tmp_path, capsys):
     import shutil
 
     out = tmp_path / "again.exr"
     shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
-    report = run(CORNELL, out, SETTINGS, progress=False, resume=True)
+    report = run(CORNELL, out, SETTINGS, progress=True, resume=True)
     assert report["iterations"] == SETTINGS.max_iterations
+    # a resume says where it continues from (not under -q, progress=False)
+    assert f"daskrad: resuming from shot {SETTINGS.max_iterations}\n" in capsys.readouterr().err
     np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
 
 

@@ -24,6 +24,7 @@ import tempfile
 import threading
 import time
 import uuid
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -512,6 +513,12 @@ def start_local(settings, store: Store | None) -> DaskExecutor:
     from distributed import Client, LocalCluster
 
     _hush_cancel_race()
+    # a busy dashboard port: Dask takes another and warns in several lines of its own;
+    # daskrad's dashboard line names the port it took instead (run._announce). A filter
+    # for good, not catch_warnings: the cluster may start on a thread of its own, and
+    # catch_warnings is not thread-safe
+    warnings.filterwarnings("ignore", message=r"Port \d+ is already in use",
+                            category=UserWarning)
     routes = list(dask.config.get("distributed.scheduler.http.routes"))
     kinds = ({"processes": True, "host": "127.0.0.1", "env": {"NUMBA_NUM_THREADS": "1"}}
              if settings.processes else {"processes": False})

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from daskrad.errors import OptionError
+from daskrad.io.files import check_directory
 from daskrad.io.image import display, srgb8
 
 #: Suffixes :func:`write_mesh` writes and the trimesh file type of each.
@@ -43,8 +44,7 @@ def write_mesh(path: str | Path, vertices: np.ndarray, triangles: np.ndarray,
     if kind is None:
         raise OptionError(f"the export must end in one of {', '.join(FORMATS)}, "
                           f"got {path.name}")
-    if not path.parent.is_dir():
-        raise OptionError(f"no such directory for the export: {path.parent}")
+    check_directory(path.parent, "export")
     if path.is_symlink() or (path.exists() and not (path.is_file()
                                                     and _carries_mark(path))):
         raise OptionError("exists and was not written by daskrad; daskrad never replaces "
