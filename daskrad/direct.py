@@ -223,8 +223,9 @@ def vertex_points(h: Hierarchy, nudge: float) -> np.ndarray:
 
 def scene_offset(h: Hierarchy) -> float:
     """The shadow-ray offset ``RAY_OFFSET · diag`` of the hierarchy's bounding box."""
-    used = h.elem_verts[h.elem_verts >= 0]
-    v = h.vertices[np.unique(used)] if len(used) else np.zeros((1, 3))
+    used = np.zeros(len(h.vertices), bool)      # a mask, not np.unique: no sort
+    used[h.elem_verts[h.elem_verts >= 0]] = True
+    v = h.vertices[used] if used.any() else np.zeros((1, 3))
     diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
     return tolerances.RAY_OFFSET * (diag if diag > 0 else 1.0)
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from daskrad import tolerances
-from daskrad.kernels.refine import resolve_tvertices_kernel
+from daskrad.kernels.refine import element_spreads, resolve_tvertices_kernel
 from daskrad.mesh.types import Hierarchy
 
 #: Default relative spread above which an element is split.
@@ -77,30 +77,23 @@ def _key(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     return np.minimum(a, b) * n + np.maximum(a, b)
 
 
-def spread(h: Hierarchy, vertex_values: np.ndarray) -> np.ndarray:
-    """``(E,)``: the largest per-channel difference between an element's corner values."""
-    ev = h.elem_verts
-    c3 = np.where(ev[:, 3] >= 0, ev[:, 3], ev[:, 0])
-    corners = np.stack([vertex_values[ev[:, 0]], vertex_values[ev[:, 1]],
-                        vertex_values[ev[:, 2]], vertex_values[c3]], axis=1)
-    return (corners.max(axis=1) - corners.min(axis=1)).max(axis=1)
-
-
 def needs_split(h: Hierarchy, vertex_values: np.ndarray, threshold: float,
                 min_size: float) -> np.ndarray:
     """``(E,) bool``: elements to split: relative spread above ``threshold`` and longest edge
-    above ``min_size`` (so refined elements end with edges of at most ``min_size``)."""
+    above ``min_size`` (so refined elements end with edges of at most ``min_size``).
+
+    The spread of an element is the largest per-channel difference between its corner
+    values, relative to ``max(its largest corner value, FLOOR × the 90th percentile of the
+    corners' largest values over all elements)`` (:func:`element_spreads`, one pass)."""
     ev = h.elem_verts
-    c3 = np.where(ev[:, 3] >= 0, ev[:, 3], ev[:, 0])
-    corners = np.stack([vertex_values[ev[:, 0]], vertex_values[ev[:, 1]],
-                        vertex_values[ev[:, 2]], vertex_values[c3]], axis=1)
-    local = corners.max(axis=1).max(axis=1)
+    values = np.ascontiguousarray(vertex_values, dtype=np.float64)
+    local, sp, edge = element_spreads(np.ascontiguousarray(ev), values,
+                                      np.ascontiguousarray(h.vertices, dtype=np.float64))
     used = ev[ev >= 0]
-    ref = float(np.percentile(vertex_values[used].max(axis=1), 90)) if len(used) else 0.0
+    # each element's corners once (a vertex counts once for every element it is a corner
+    # of), the largest channel of each
+    ref = float(np.percentile(values.max(axis=1)[used], 90)) if len(used) else 0.0
     level = np.maximum(local, FLOOR * ref)
-    sp = (corners.max(axis=1) - corners.min(axis=1)).max(axis=1)
-    p = h.vertices[np.stack([ev[:, 0], ev[:, 1], ev[:, 2], c3], axis=1)]
-    edge = np.linalg.norm(np.roll(p, -1, axis=1) - p, axis=2).max(axis=1)
     # an edge equal to min_size up to round-off is not split again
     return ((sp > threshold * level) & (level > 0)
             & (edge > min_size * (1.0 + tolerances.SPLIT_SIZE_RTOL)))
