@@ -558,21 +558,21 @@ def test_a_ctrl_c_as_a_dask_call_starts_prints_no_tornado_traceback(monkeypatch)
     log = logging.getLogger("tornado.application")
     records = Records()
     log.addHandler(records)
-    had = dask_executor._CANCEL_RACE in log.filters
-    log.removeFilter(dask_executor._CANCEL_RACE)
+    had = dask_executor.CANCEL_RACE in log.filters
+    log.removeFilter(dask_executor.CANCEL_RACE)
     runner = du.LoopRunner(asynchronous=False)
     runner.start()
     try:
         interrupt_a_call(runner)
         unfiltered = [r.exc_info[1] for r in records.seen]
         records.seen.clear()
-        dask_executor._hush_cancel_race()
+        dask_executor.hush_cancel_race()
         interrupt_a_call(runner)
         logging.getLogger("tornado.application").error("another error")
     finally:
         runner.stop()
         log.removeHandler(records)
         if not had:
-            log.removeFilter(dask_executor._CANCEL_RACE)
+            log.removeFilter(dask_executor.CANCEL_RACE)
     assert len(unfiltered) == 1 and isinstance(unfiltered[0], NameError), unfiltered
     assert [r.getMessage() for r in records.seen] == ["another error"]

@@ -470,7 +470,7 @@ def _dashboard(client, host: str | None = None) -> str | None:
     return f"http://{host or '127.0.0.1'}:{services['dashboard']}/status"
 
 
-class _CancelRace(logging.Filter):
+class CancelRace(logging.Filter):
     """Drops tornado's report of a race in ``distributed.utils.sync``: a Ctrl-C in the
     instant between a call's start and its future's creation makes the ``cancel`` callback
     read the unassigned ``future`` (``NameError: cannot access free variable``), and tornado
@@ -490,12 +490,12 @@ class _CancelRace(logging.Filter):
                     and Path(code.co_filename).parts[-2:] == ("distributed", "utils.py"))
 
 
-_CANCEL_RACE = _CancelRace()
+CANCEL_RACE = CancelRace()
 
 
-def _hush_cancel_race() -> None:
-    """Installs :class:`_CancelRace` on tornado's callback logger, once per process."""
-    logging.getLogger("tornado.application").addFilter(_CANCEL_RACE)   # added once only
+def hush_cancel_race() -> None:
+    """Installs :class:`CancelRace` on tornado's callback logger, once per process."""
+    logging.getLogger("tornado.application").addFilter(CANCEL_RACE)   # added once only
 
 
 def start_local(settings, store: Store | None) -> DaskExecutor:
@@ -512,7 +512,7 @@ def start_local(settings, store: Store | None) -> DaskExecutor:
     import dask
     from distributed import Client, LocalCluster
 
-    _hush_cancel_race()
+    hush_cancel_race()
     # a busy dashboard port: Dask takes another and warns in several lines of its own;
     # daskrad's dashboard line names the port it took instead (run._announce). A filter
     # for good, not catch_warnings: the cluster may start on a thread of its own, and
@@ -557,7 +557,7 @@ def connect_scheduler(settings, store: Store | None) -> DaskExecutor:
             "with --scheduler every worker opens the solution store itself, so the output "
             f"must be an absolute path on a shared file system (got {store.given}; "
             "e.g. -o /shared/run/out.exr)", store.given)
-    _hush_cancel_race()
+    hush_cancel_race()
     try:
         client = Client(settings.scheduler, timeout=settings.connect_timeout)
     except (OSError, TimeoutError) as err:
