@@ -8,6 +8,14 @@ import sys
 from daskrad.solve import Solution
 
 
+def say(message: str, enabled: bool) -> None:
+    """One line on stderr, ``daskrad: <message>``, naming the long step that starts now (the
+    direct pass, the render: tens of seconds in a furnished room, before and after the bar).
+    Only where the bar would show (``enabled`` and a terminal)."""
+    if enabled and sys.stderr.isatty():
+        print(f"daskrad: {message}", file=sys.stderr, flush=True)
+
+
 class Bar:
     """Progress: shots done and the relative unshot RMS against the tolerance.
 

@@ -27,7 +27,7 @@ from daskrad.distributed.monitor import Preview, Watch
 from daskrad.distributed.store import Store
 from daskrad.mesh import Hierarchy
 from daskrad.preprocess import preprocess
-from daskrad.progress import Bar
+from daskrad.progress import Bar, say
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
 
@@ -77,6 +77,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
     try:
         store.open()           # a new store, or the checkpoint to resume from
         _announce(ex, settings)
+        say(f"direct light at {len(mesh.hierarchy.vertices):,} vertices", progress)
         light = direct.light(scene, mesh, settings, ex)                           # 2
         seconds["direct"], t = time.perf_counter() - t, time.perf_counter()
         mesh = light.mesh
@@ -94,6 +95,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         watch.finish(sol)
         bar.close()
         seconds["solve"], t = time.perf_counter() - t, time.perf_counter()
+        say(f"rendering {camera.width} x {camera.height}", progress)
         image = render.image(scene, light, sol, settings, ex, camera)             # 4
         store.finish(image)
         seconds["render"], t = time.perf_counter() - t, time.perf_counter()

@@ -406,3 +406,25 @@ def test_info_counts_in_words_that_agree(capsys):
     assert cli.main(["info", str(CORNELL)]) == 0
     out = capsys.readouterr().out
     assert "\nemitters    1 polygon\n" in out, out          # the box's one light
+
+
+def test_a_terminal_hears_each_long_step_as_it_starts(tmp_path, monkeypatch):
+    # the direct pass and the render (tens of seconds in a furnished room) each say they
+    # start, on a terminal, before and after the solve's bar; a log file and -q hear nothing
+    import io
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    for tty, progress, heard in ((True, True, True), (False, True, False), (True, False, False)):
+        err = Terminal() if tty else io.StringIO()
+        monkeypatch.setattr(sys, "stderr", err)
+        run(CORNELL, tmp_path / "c.exr", SMALL, progress=progress)
+        lines = [x for x in err.getvalue().replace("\r", "\n").splitlines()
+                 if x.startswith("daskrad: ") and "replaced" not in x]
+        expected = ["daskrad: direct light at", f"daskrad: rendering {SMALL.width} x "
+                    f"{SMALL.height}"] if heard else []
+        assert [x[:len(e)] for x, e in zip(lines, expected, strict=True)] == expected, lines
+        if heard:
+            assert lines[0].endswith(" vertices"), lines
