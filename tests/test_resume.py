@@ -166,6 +166,27 @@ def test_resume_refuses_other_settings_and_a_missing_store(uninterrupted, tmp_pa
         run(CORNELL, tmp_path / "none.exr", SETTINGS, progress=False, resume=True)
 
 
+def test_looser_criteria_are_refused_before_the_direct_pass(uninterrupted, tmp_path,
+                                                            monkeypatch):
+    # on a furnished room the refusal came after the direct pass, ~16 s; it needs only the
+    # store's last checkpoint and the resolved shot cap
+    import shutil
+
+    from daskrad import direct
+
+    def no_direct_pass(*args, **kwargs):
+        raise AssertionError("the direct pass ran before the refusal")
+
+    out = tmp_path / "early.exr"
+    shutil.copytree(uninterrupted.with_suffix(".zarr"), out.with_suffix(".zarr"))
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    monkeypatch.setattr(direct, "light", no_direct_pass)
+    for looser in (SETTINGS.replace(max_iterations=100), SETTINGS.replace(tolerance=0.5)):
+        with pytest.raises(OptionError, match="cannot resume with .* are past where"):
+            run(CORNELL, out, looser, progress=False, resume=True)
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+
+
 def _older_store(uninterrupted: Path, tmp_path: Path, drop: tuple, fmt: str):
     """``(out, its store's zarr.json)``: a copy of the uninterrupted run's store as an older
     daskrad wrote it, without the settings ``drop`` and marked format ``fmt``."""

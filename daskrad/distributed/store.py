@@ -448,6 +448,7 @@ class Store:
             raise StoreError("cannot resume: the scene's " + " and ".join(parts)
                              + " changed since the store was written; run without --resume",
                              self.given)
+        self._refuse_looser()
         if attrs.get("format") != FORMAT:    # every check passed: the run writes as 7
             self.group.update_attributes({"format": FORMAT})
 
@@ -600,8 +601,7 @@ class Store:
                 # only a smaller tolerance or more iterations than the last run's continue
                 # it (an older slot may hold an early state a looser run passes through;
                 # resuming to it would throw the store's answer away)
-                tighter = same or (tol <= a.get("tolerance", -1.0)
-                                   and maxit >= a.get("max_iterations", 1 << 62))
+                tighter = not _looser(a, tol, maxit)
             usable = tighter and (same or (a.get("open") and tol <= a["tolerance"]
                                            and _fits(a["iteration"], a["queued"],
                                                      self.settings)))
@@ -623,13 +623,39 @@ class Store:
             raise StoreError(f"cannot resume with tolerance={tol:g}, max_iterations={maxit}: "
                              f"the checkpoint it would continue from, {damaged.message}",
                              self.given)
-        a = tried[0] if tried else {}
-        raise StoreError(
+        raise self._past(tried[0] if tried else {})
+
+    def _past(self, a: dict) -> StoreError:
+        """The refusal of a resume whose stopping criteria a straight run would have met
+        before the checkpoint ``a`` (its slot's attributes)."""
+        tol, maxit = float(self.settings.tolerance), int(self.settings.max_iterations)
+        return StoreError(
             f"cannot resume with tolerance={tol:g}, max_iterations={maxit}: the store's "
             f"checkpoints (iteration {a.get('iteration')}, written with tolerance="
             f"{a.get('tolerance')!r}, max_iterations={a.get('max_iterations')!r}) are past "
             "where a run with these criteria would have stopped; only a smaller tolerance or "
             "more iterations continue a store; run without --resume", self.given)
+
+    def _refuse_looser(self) -> None:
+        """Refuse at once, before the scene's direct pass, a resume :meth:`load_checkpoint`
+        would refuse for its stopping criteria: looser than the last checkpoint's (a larger
+        tolerance or fewer iterations), so no slot is one a straight run passes through (on a
+        furnished room the direct pass came first: ~16 s before the one line). Only with the
+        shot cap resolved (a run resolves it from the patches before it opens its store);
+        anything unreadable is left to :meth:`load_checkpoint`, which names it."""
+        latest = self.group.attrs.get("checkpoint")
+        if latest is None or self.settings.max_iterations is None:
+            return
+        try:
+            a = self.group[f"internal/checkpoint/{int(latest)}"].attrs.asdict()
+        except Exception:  # noqa: BLE001 - missing or garbled: load_checkpoint says which
+            return
+        if not _intact(a):
+            return
+        tol, maxit = float(self.settings.tolerance), int(self.settings.max_iterations)
+        if not _looser(a, tol, maxit):
+            return
+        raise self._past(a)
 
     def _read_slot(self, slot: int, a: dict, n_patches: int) -> Solution:
         s = self.group[f"internal/checkpoint/{slot}"]
@@ -722,6 +748,15 @@ class Store:
              description=f"task context {kind}: its arrays, packed (the group's layout)")
         g.attrs.put({"meta": meta, "digests": digests, "layout": layout, "token": token})
         return token
+
+
+def _looser(a: dict, tol: float, maxit: int) -> bool:
+    """Whether the criteria ``tol``, ``maxit`` would have stopped a straight run before the
+    checkpoint ``a``: neither the same as its own nor a smaller tolerance with as many
+    iterations or more."""
+    same = a.get("tolerance") == tol and a.get("max_iterations") == maxit
+    return not (same or (tol <= a.get("tolerance", -1.0)
+                         and maxit >= a.get("max_iterations", 1 << 62)))
 
 
 def _open(sol: Solution, settings: Settings) -> bool:
