@@ -82,15 +82,15 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         seconds["direct"], t = time.perf_counter() - t, time.perf_counter()
         mesh = light.mesh
         camera = render.camera(scene, settings)
-        bar = Bar(settings.tolerance, enabled=progress)
-        watch = Watch(store, ex, settings, mesh.hierarchy, str(scene.path),
-                      Preview(mesh, camera), then=bar)
         begin = store.begin(mesh.hierarchy, mesh.reflectance, solve.start(light))
         began = True
         resumed_from = begin.iteration if resume else None    # the solve may update begin
-        if resume and progress:
+        if resume and progress:         # before the bar, which draws its line at once
             output.note(f"resuming from shot {begin.iteration}" if begin.iteration else
                         "resuming: the store holds no shot yet, so the solve starts afresh")
+        bar = Bar(settings.tolerance, enabled=progress)
+        watch = Watch(store, ex, settings, mesh.hierarchy, str(scene.path),
+                      Preview(mesh, camera), then=bar)
         sol = solve.radiosity(light, settings, ex, begin, on_batch=watch)         # 3
         watch.finish(sol)
         bar.close()
@@ -158,12 +158,11 @@ def _announce(executor, settings: Settings) -> None:
     """Print the dashboard's address when there is one (and whether others can reach it)."""
     link = executor.dashboard_link
     if link:
-        host, _, port = settings.dashboard.rpartition(":")
+        host = settings.dashboard.rpartition(":")[0]
         # a busy port: Dask serves the dashboard on another (its own warning is filtered,
-        # daskrad.distributed.dask_executor.start_local), and this line says so
-        moved = (f"; port {port} was in use" if settings.scheduler is None
-                 and port not in ("0", "") and not link.split("/")[2].endswith(f":{port}")
-                 else "")
+        # daskrad.distributed.dask_executor.quiet_dask), and this line says so
+        asked, got = getattr(executor, "dashboard_ports", (0, 0))
+        moved = f"; port {asked} was in use" if asked and got != asked else ""
         print(f"daskrad: dashboard {link} (progress: {link.rsplit('/', 1)[0]}/daskrad{moved})",
               file=sys.stderr)
         host = host.strip("[]")

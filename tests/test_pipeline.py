@@ -296,7 +296,9 @@ def test_every_output_in_a_directory_that_refuses_files_names_the_directory(tmp_
         Outputs.of(afile / "a.exr")
     with pytest.raises(OptionError, match="no such directory for the export"):
         write_mesh(tmp_path / "none" / "e.ply", *tri)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.obj"]    # no probe left
+    Outputs.of(tmp_path / "ok.exr")             # a directory that takes files: probed
+    write_mesh(tmp_path / "ok.ply", *tri)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ok.ply", "x.obj"]   # no probe left
 
 
 def test_a_full_disk_is_one_line_and_leaves_nothing_half_written(earlier, tmp_path, capsys,
@@ -350,7 +352,8 @@ def test_a_dashboard_open_to_the_network_is_said(tmp_path, capsys):
     assert "daskrad: warning: the dashboard listens on 0.0.0.0 (0.0.0.0:0)" in err
     run(CORNELL, tmp_path / "d.exr", SMALL.replace(workers=2, dashboard="127.0.0.1:0"),
         progress=False)
-    assert "dashboard listens" not in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "dashboard listens" not in err and "was in use" not in err and "daskrad: dash" in err
 
 
 def test_a_busy_dashboard_port_is_one_line_naming_it(tmp_path, capsys, recwarn):
@@ -428,3 +431,9 @@ def test_a_terminal_hears_each_long_step_as_it_starts(tmp_path, monkeypatch):
         assert [x[:len(e)] for x, e in zip(lines, expected, strict=True)] == expected, lines
         if heard:
             assert lines[0].endswith(" vertices"), lines
+    # a resume's note comes before the bar, which draws its line as it is made
+    err = Terminal()
+    monkeypatch.setattr(sys, "stderr", err)
+    run(CORNELL, tmp_path / "c.exr", SMALL, progress=True, resume=True)
+    lines = err.getvalue().replace("\r", "\n").splitlines()
+    assert [x for x in lines if "resuming" in x][0].startswith("daskrad: resuming from shot ")

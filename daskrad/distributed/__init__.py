@@ -103,6 +103,9 @@ def start_early(settings) -> Early | None:
     known good, and worker processes start from the main thread (they must inherit its
     ignored SIGINT, :func:`daskrad.distributed.dask_executor.start_local`)."""
     if settings.workers and settings.scheduler is None and not settings.processes:
+        from daskrad.distributed.dask_executor import quiet_dask
+
+        quiet_dask()            # from this thread, before the cluster's thread starts
         return Early(settings)
     return None
 

@@ -23,6 +23,7 @@ import signal
 import tempfile
 import threading
 import time
+import urllib.parse
 import uuid
 import warnings
 from pathlib import Path
@@ -106,6 +107,10 @@ class _Batch:
 class DaskExecutor:
     """Form factors and tiles as futures of ``client``.
 
+    ``dashboard_ports``: ``(asked, got)``, the dashboard port a LocalCluster started here
+    was asked for and the one it serves on (another when that one was busy); ``(0, 0)``
+    when not known (a cluster not started here, or port 0 asked).
+
     Parameters
     ----------
     client : distributed.Client
@@ -120,6 +125,8 @@ class DaskExecutor:
         The host the dashboard of a cluster started here listens on, for its link; None: the
         client's own link.
     """
+
+    dashboard_ports: tuple[int, int] = (0, 0)
 
     def __init__(self, client, store: Store | None = None, cluster=None,
                  own_client: bool = False, dashboard_host: str | None = None):
@@ -498,6 +505,20 @@ def hush_cancel_race() -> None:
     logging.getLogger("tornado.application").addFilter(CANCEL_RACE)   # added once only
 
 
+def quiet_dask() -> None:
+    """What daskrad's clients filter out of Dask's output, for the rest of the process:
+    tornado's report of the cancel race (:class:`CancelRace`), and the several-line warning
+    of a busy dashboard port (Dask takes another; daskrad's dashboard line names the port
+    it asked for, :attr:`DaskExecutor.dashboard_ports`). Called from the main thread before
+    a cluster starts on a thread of its own (:func:`daskrad.distributed.start_early`): the
+    warnings filters are one list, which the main thread's ``catch_warnings`` (the MGF
+    reader's) copies on entry and puts back on exit, so a filter added from another thread
+    meanwhile would be lost."""
+    hush_cancel_race()
+    warnings.filterwarnings("ignore", message=r"Port \d+ is already in use",
+                            category=UserWarning)
+
+
 def start_local(settings, store: Store | None) -> DaskExecutor:
     """``--workers N``: a LocalCluster of N workers with one thread each, its dashboard on
     ``settings.dashboard`` (loopback by default).
@@ -512,13 +533,7 @@ def start_local(settings, store: Store | None) -> DaskExecutor:
     import dask
     from distributed import Client, LocalCluster
 
-    hush_cancel_race()
-    # a busy dashboard port: Dask takes another and warns in several lines of its own;
-    # daskrad's dashboard line names the port it took instead (run._announce). A filter
-    # for good, not catch_warnings: the cluster may start on a thread of its own, and
-    # catch_warnings is not thread-safe
-    warnings.filterwarnings("ignore", message=r"Port \d+ is already in use",
-                            category=UserWarning)
+    quiet_dask()        # again: a no-op when start_early installed it, as it should
     routes = list(dask.config.get("distributed.scheduler.http.routes"))
     kinds = ({"processes": True, "host": "127.0.0.1", "env": {"NUMBA_NUM_THREADS": "1"}}
              if settings.processes else {"processes": False})
@@ -527,8 +542,11 @@ def start_local(settings, store: Store | None) -> DaskExecutor:
         cluster = LocalCluster(
             n_workers=settings.workers, threads_per_worker=1, silence_logs=logging.ERROR,
             dashboard_address=settings.dashboard, **kinds)
-    return DaskExecutor(Client(cluster), store, cluster=cluster,
-                        dashboard_host=settings.dashboard.rsplit(":", 1)[0])
+    ex = DaskExecutor(Client(cluster), store, cluster=cluster,
+                      dashboard_host=settings.dashboard.rsplit(":", 1)[0])
+    got = urllib.parse.urlsplit(ex.dashboard_link).port if ex.dashboard_link else None
+    ex.dashboard_ports = (int(settings.dashboard.rsplit(":", 1)[1]), got or 0)
+    return ex
 
 
 @contextlib.contextmanager

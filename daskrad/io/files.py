@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
 from pathlib import Path
@@ -25,5 +26,8 @@ def check_directory(directory: str | Path, what: str = "output") -> None:
     except OSError as err:
         raise OptionError(f"cannot write in this directory ({err.strerror or err})",
                           directory) from None
-    os.close(fd)
-    os.unlink(probe)
+    # made and written: the directory takes files; the probe's own removal cannot fail it
+    with contextlib.suppress(OSError):
+        os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(probe)
