@@ -49,6 +49,14 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _fov(text: str) -> float:
+    """A field of view in degrees, in (0, 180): the same words for 0 and for 200."""
+    value = _number(float, text, "a number of degrees in (0, 180)")
+    if not 0.0 < value < 180.0:
+        raise argparse.ArgumentTypeError(f"must be a number of degrees in (0, 180), got {text}")
+    return value
+
+
 def _nonneg_float(text: str) -> float:
     value = _number(float, text, "a finite number >= 0")
     if not (value >= 0 and value != float("inf")):
@@ -218,7 +226,7 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
                         help="point looked at (default: the run's)")
     render.add_argument("--up", type=_vec3, metavar="X,Y,Z", help="up direction (default: the "
                                                                     "run's)")
-    render.add_argument("--fov", type=_positive_float,
+    render.add_argument("--fov", type=_fov,
                         help="horizontal field of view, degrees (default: the run's)")
     render.add_argument("--width", type=_positive_int, help="image width (default: the run's)")
     render.add_argument("--height", type=_positive_int,

@@ -359,8 +359,11 @@ def test_render_refuses_bad_cameras_and_unfinished_stores(straight, tmp_path, ca
     code, _, err = daskrad(capsys, "render", store, "-o", tmp_path / "v.exr", "--eye",
                            "278,273,0", "--look-at", "278,273,0")
     one_line_error(code, err, "same point")
-    code, _, err = daskrad(capsys, "render", store, "-o", tmp_path / "v.exr", "--fov", "200")
-    one_line_error(code, err, "--fov")
+    for fov in ("200", "0", "180"):       # the same words either side of the range
+        with pytest.raises(SystemExit) as stop:     # argparse's: exit 2 after its line
+            daskrad(capsys, "render", store, "-o", tmp_path / "v.exr", "--fov", fov)
+        one_line_error(stop.value.code, capsys.readouterr().err, "--fov",
+                       f"must be a number of degrees in (0, 180), got {fov}")
     code, _, err = daskrad(capsys, "render", store, "-o", store / "inside.exr")
     one_line_error(code, err, "outside the store")
     code, _, err = daskrad(capsys, "render", tmp_path, "-o", tmp_path / "v.exr")
