@@ -64,8 +64,8 @@ def run_command(args) -> None:
             check_size(load_scene(args.scene, args.config, args.camera), settings)
             warmup.announce()
             warmup.warmup(verbose=False)
-        run(args.scene, output, settings, progress=not args.quiet, config=args.config,
-            resume=args.resume, camera=args.camera)
+        report = run(args.scene, output, settings, progress=not args.quiet,
+                     config=args.config, resume=args.resume, camera=args.camera)
     except (SystemError, KeyboardInterrupt) as err:
         # Ctrl-C inside a numba kernel surfaces as "SystemError: ... returned a result with
         # an exception set" chained to the KeyboardInterrupt: report it as the interrupt
@@ -73,6 +73,11 @@ def run_command(args) -> None:
             raise
         raise Interrupted(resume_hint(output)) from None
     out = Path(output)
+    if args.dashboard is not None and not report["workers"] and settings.scheduler is None:
+        from daskrad.output import warn
+
+        warn(f"--dashboard {args.dashboard} was not used: the run stayed in this process, "
+             "with no Dask cluster (give --workers N for one)")
     print(f"wrote {out}, {out.with_suffix('.png')}, {out.with_suffix('.json')} and the "
           f"store {out.with_suffix('.zarr')}")
 

@@ -437,3 +437,18 @@ def test_a_terminal_hears_each_long_step_as_it_starts(tmp_path, monkeypatch):
     run(CORNELL, tmp_path / "c.exr", SMALL, progress=True, resume=True)
     lines = err.getvalue().replace("\r", "\n").splitlines()
     assert [x for x in lines if "resuming" in x][0].startswith("daskrad: resuming from shot ")
+
+
+def test_a_dashboard_asked_of_an_in_process_run_is_said_to_be_unused(tmp_path, capsys):
+    # the Cornell box is below the size a cluster pays for: --dashboard alone was ignored
+    # without a word
+    from daskrad import cli
+
+    args = ["run", str(CORNELL), "-o", str(tmp_path / "c.exr"), "-q", "--width", "32",
+            "--height", "32", "--max-iterations", "40"]
+    assert cli.main([*args, "--dashboard", "127.0.0.1:0"]) == 0
+    err = capsys.readouterr().err
+    assert ("daskrad: warning: --dashboard 127.0.0.1:0 was not used: the run stayed in "
+            "this process, with no Dask cluster (give --workers N for one)") \
+        in err.splitlines(), err
+    assert cli.main(args) == 0 and "--dashboard" not in capsys.readouterr().err
