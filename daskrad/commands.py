@@ -102,6 +102,7 @@ def info_text(args) -> str:
                                 args.element_size or default_sizes(scene)[1])
     lo, hi = scene.bounds + scene.origin          # in the file's coordinates
     quads = int((scene.polygons[:, 3] >= 0).sum())
+    n_emit = int(scene.emitting.sum())
     lines = [
         f"scene       {scene.path}",
         f"polygons    {len(scene.polygons)} ({quads} quads, {len(scene.polygons) - quads} "
@@ -112,7 +113,7 @@ def info_text(args) -> str:
         "subdivision)",
         f"vertices    {len(h.vertices)}",
         f"materials   {len(scene.materials)}: {', '.join(scene.materials.names)}",
-        f"emitters    {_count(int(scene.emitting.sum()), 'polygon')}",
+        f"emitters    {n_emit} polygon{'s' if n_emit != 1 else ''}",
         f"lights      {len(scene.point_lights)} point, {len(scene.directional_lights)} "
         "directional",
         f"bounds      [{lo[0]:.4g}, {lo[1]:.4g}, {lo[2]:.4g}] .. "
@@ -121,11 +122,6 @@ def info_text(args) -> str:
         f"{len(tris)} triangles",
     ]
     return "\n".join(lines)
-
-
-def _count(n: int, noun: str) -> str:
-    """``1 polygon``, ``2 polygons``."""
-    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
 
 def _camera_of(args, stored):

@@ -158,14 +158,13 @@ def _announce(executor, settings: Settings) -> None:
     """Print the dashboard's address when there is one (and whether others can reach it)."""
     link = executor.dashboard_link
     if link:
-        host = settings.dashboard.rpartition(":")[0]
         # a busy port: Dask serves the dashboard on another (its own warning is filtered,
         # daskrad.distributed.dask_executor.quiet_dask), and this line says so
         asked, got = getattr(executor, "dashboard_ports", (0, 0))
         moved = f"; port {asked} was in use" if asked and got != asked else ""
         print(f"daskrad: dashboard {link} (progress: {link.rsplit('/', 1)[0]}/daskrad{moved})",
               file=sys.stderr)
-        host = host.strip("[]")
+        host = settings.dashboard.rpartition(":")[0].strip("[]")
         if host not in ("127.0.0.1", "localhost", "::1") and not host.startswith("127."):
             output.warn(f"the dashboard listens on {host or 'every interface'} "
                         f"({settings.dashboard}), not only on this machine")

@@ -533,7 +533,7 @@ def start_local(settings, store: Store | None) -> DaskExecutor:
     import dask
     from distributed import Client, LocalCluster
 
-    quiet_dask()        # again: a no-op when start_early installed it, as it should
+    quiet_dask()        # for the paths without start_early; again after it: harmless
     routes = list(dask.config.get("distributed.scheduler.http.routes"))
     kinds = ({"processes": True, "host": "127.0.0.1", "env": {"NUMBA_NUM_THREADS": "1"}}
              if settings.processes else {"processes": False})
