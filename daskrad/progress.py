@@ -1,19 +1,69 @@
-"""The terminal's progress bar, an observer of the solve (tqdm on stderr)."""
+"""What a run says as it goes: on a terminal the solve's bar (tqdm on stderr) and a line as
+each long step starts; on a stderr that is a file or a pipe (a batch job's log) a line now and
+then (:class:`Heartbeat`). Observers only: nothing here changes what a run computes."""
 
 from __future__ import annotations
 
 import math
 import sys
+import threading
+import time
 
 from daskrad.solve import Solution
 
+#: Seconds between two lines of a :class:`Heartbeat`: a run shorter than this says nothing in a
+#: log, a furnished room's few minutes a line or two a step, a paper-scale run on a cluster
+#: (hours) a few hundred lines.
+HEARTBEAT_SECONDS = 30.0
 
-def say(message: str, enabled: bool) -> None:
-    """One line on stderr, ``daskrad: <message>``, naming the long step that starts now (the
-    direct pass, the render: tens of seconds in a furnished room, before and after the bar).
-    Only where the bar would show (``enabled`` and a terminal)."""
-    if enabled and sys.stderr.isatty():
-        print(f"daskrad: {message}", file=sys.stderr, flush=True)
+
+class Heartbeat:
+    """Progress where the bar cannot show: when ``enabled`` and stderr is not a terminal,
+    a line every ``seconds`` (:data:`HEARTBEAT_SECONDS`), ``daskrad: 2:30 shooting: shot
+    4,120, relative unshot RMS 3.1e-03 (tolerance 1e-03)``: the time since the run began and
+    the step now running (:meth:`say`, :meth:`shots`), from a thread of its own, since a step
+    waits on its tasks for minutes. A log otherwise heard nothing between the start of a
+    furnished room's run and its end. On a terminal it prints the step lines itself (the bar
+    shows the solve); disabled (``-q``) it says nothing."""
+
+    def __init__(self, enabled: bool, seconds: float | None = None):
+        self.enabled = enabled
+        self.terminal = sys.stderr.isatty()
+        self.status = "loading and meshing the scene"   # the step now running
+        self.seconds = float(HEARTBEAT_SECONDS if seconds is None else seconds)
+        self._begun = time.monotonic()
+        self._stop = threading.Event()
+        self._thread = None
+        if enabled and not self.terminal:
+            self._thread = threading.Thread(target=self._beat, name="daskrad-heartbeat",
+                                            daemon=True)
+            self._thread.start()
+
+    def say(self, message: str) -> None:
+        """The step that starts now: one line ``daskrad: <message>`` on a terminal (the
+        direct pass, the render: tens of seconds in a furnished room, before and after the
+        bar), the next heartbeat's status otherwise."""
+        self.status = message
+        if self.enabled and self.terminal:
+            print(f"daskrad: {message}", file=sys.stderr, flush=True)
+
+    def shots(self, sol: Solution, tolerance: float) -> None:
+        """The solve's progress after a batch, for the next heartbeat."""
+        if sol.history:
+            it, rms, _ = sol.history[-1]
+            self.status = (f"shooting: shot {int(it):,}, relative unshot RMS {rms:.1e} "
+                           f"(tolerance {tolerance:.0e})")
+
+    def close(self) -> None:
+        """No more lines (the run ended, or failed: its error is the last line)."""
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join()
+
+    def _beat(self) -> None:
+        while not self._stop.wait(self.seconds):
+            minutes, secs = divmod(int(time.monotonic() - self._begun), 60)
+            print(f"daskrad: {minutes}:{secs:02d} {self.status}", file=sys.stderr, flush=True)
 
 
 class Bar:
@@ -21,11 +71,14 @@ class Bar:
 
     The bar counts decades of unshot RMS reduction, ``0 → log10(1/tolerance)``. Disabled, it
     does nothing (``--quiet``, tests, and a stderr that is not a terminal: a log file would
-    fill with carriage-return updates).
+    fill with carriage-return updates; a :class:`Heartbeat` given hears every batch and speaks
+    there).
     """
 
-    def __init__(self, tolerance: float, enabled: bool):
+    def __init__(self, tolerance: float, enabled: bool, heartbeat: Heartbeat | None = None):
         self.bar = None
+        self.tolerance = tolerance
+        self.heartbeat = heartbeat
         if enabled and sys.stderr.isatty():
             from tqdm import tqdm
 
@@ -35,6 +88,8 @@ class Bar:
                             file=sys.stderr)
 
     def __call__(self, sol: Solution) -> None:
+        if self.heartbeat is not None:
+            self.heartbeat.shots(sol, self.tolerance)
         if self.bar is None or not sol.history:
             return
         it, rms, sec = sol.history[-1]

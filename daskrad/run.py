@@ -27,7 +27,7 @@ from daskrad.distributed.monitor import Preview, Watch
 from daskrad.distributed.store import Store
 from daskrad.mesh import Hierarchy
 from daskrad.preprocess import preprocess
-from daskrad.progress import Bar, say
+from daskrad.progress import Bar, Heartbeat
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
 
@@ -43,11 +43,17 @@ def run(scene_path: str | Path, out: str | Path, settings: Settings, progress: b
     outputs = output.Outputs.of(out, resume)
     settings.validate()
     check_scheduler(settings)
-    with outputs.lock():
-        return _run(scene_path, outputs, settings, progress, config, resume, executor, camera)
+    beat = Heartbeat(progress)      # a log hears a line every 30 s of a long run
+    try:
+        with outputs.lock():
+            return _run(scene_path, outputs, settings, progress, config, resume, executor,
+                        camera, beat)
+    finally:
+        beat.close()
 
 
-def _run(scene_path, outputs, settings, progress, config, resume, executor, camera) -> dict:
+def _run(scene_path, outputs, settings, progress, config, resume, executor, camera,
+         beat) -> dict:
     seconds: dict[str, float] = {}
     t = start = time.perf_counter()
     early = start_early(settings) if executor is None else None   # starts as the scene loads
@@ -77,7 +83,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
     try:
         store.open()           # a new store, or the checkpoint to resume from
         _announce(ex, settings)
-        say(f"direct light at {len(mesh.hierarchy.vertices):,} vertices", progress)
+        beat.say(f"direct light at {len(mesh.hierarchy.vertices):,} vertices")
         light = direct.light(scene, mesh, settings, ex)                           # 2
         seconds["direct"], t = time.perf_counter() - t, time.perf_counter()
         mesh = light.mesh
@@ -88,14 +94,14 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         if resume and progress:         # before the bar, which draws its line at once
             output.note(f"resuming from shot {begin.iteration}" if begin.iteration else
                         "resuming: the store holds no shot yet, so the solve starts afresh")
-        bar = Bar(settings.tolerance, enabled=progress)
+        bar = Bar(settings.tolerance, enabled=progress, heartbeat=beat)
         watch = Watch(store, ex, settings, mesh.hierarchy, str(scene.path),
                       Preview(mesh, camera), then=bar)
         sol = solve.radiosity(light, settings, ex, begin, on_batch=watch)         # 3
         watch.finish(sol)
         bar.close()
         seconds["solve"], t = time.perf_counter() - t, time.perf_counter()
-        say(f"rendering {camera.width} x {camera.height}", progress)
+        beat.say(f"rendering {camera.width} x {camera.height}")
         image = render.image(scene, light, sol, settings, ex, camera)             # 4
         store.finish(image)
         seconds["render"], t = time.perf_counter() - t, time.perf_counter()
@@ -119,6 +125,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
     report = output.report(scene, outputs, settings, light, sol, image, workers=ex.workers,
                            seconds=seconds, warnings=warnings, memory=memory,
                            resumed_from=resumed_from)
+    beat.status = "writing the image and the report"
     outputs.publish(Path(store.path))
     output.write(outputs, image, report, settings.exposure)                       # 5
     if replaced and not resume:

@@ -8,6 +8,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -401,6 +402,57 @@ def test_a_resume_with_a_relative_output_keeps_its_store(tmp_path):
     # continued from the last state of the first run a straight run passes through (its stop
     # inside a batch is not one: the batch is applied whole in a longer run)
     assert 0 < report["resumed_from"] <= shots < report["iterations"]
+
+
+def test_a_log_hears_the_step_now_running_every_heartbeat(tmp_path, monkeypatch):
+    # a stderr that is a file (a batch job's log) heard nothing from the start of a furnished
+    # room's run to its end: now a line every HEARTBEAT_SECONDS names the step running
+    import io
+    import re
+
+    from daskrad import progress
+    from daskrad.solve import Solution
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    steps = [r"loading and meshing the scene", r"direct light at [\d,]+ vertices",
+             r"shooting: shot [\d,]+, relative unshot RMS \d\.\de[-+]\d\d \(tolerance 1e-03\)",
+             rf"rendering {SMALL.width} x {SMALL.height}", r"writing the image and the report"]
+    monkeypatch.setattr(progress, "HEARTBEAT_SECONDS", 0.02)
+    for err, progress_on, heard in ((io.StringIO(), True, True), (io.StringIO(), False, False),
+                                    (Terminal(), True, False)):
+        monkeypatch.setattr(sys, "stderr", err)
+        run(CORNELL, tmp_path / "c.exr", SMALL.replace(tolerance=1e-3), progress=progress_on)
+        beats = [x for x in err.getvalue().replace("\r", "\n").splitlines()
+                 if re.match(r"daskrad: \d+:\d\d ", x)]
+        assert bool(beats) == heard, err.getvalue()
+        # each line names a step of the pipeline, in the pipeline's order
+        order = []
+        for line in beats:
+            status = line.split(" ", 2)[2]
+            kinds = [k for k, pattern in enumerate(steps) if re.fullmatch(pattern, status)]
+            assert kinds, line
+            order.append(kinds[0])
+        assert order == sorted(order), beats
+
+    # the solve's status follows its last batch; closed, the heartbeat says no more
+    err = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", err)
+    beat = progress.Heartbeat(True, seconds=0.005)
+    beat.shots(Solution(radiosity=None, direct=None, unshot=None, initial_rms=1.0,
+                        history=[(4120, 3.14e-3, 9.0)]), 1e-3)
+    for _ in range(400):
+        if err.getvalue():
+            break
+        time.sleep(0.005)
+    beat.close()
+    said = err.getvalue()
+    assert said.splitlines()[0].endswith(
+        " shooting: shot 4,120, relative unshot RMS 3.1e-03 (tolerance 1e-03)"), said
+    time.sleep(0.03)
+    assert err.getvalue() == said
 
 
 def test_info_counts_in_words_that_agree(capsys):
