@@ -578,3 +578,40 @@ def test_a_ctrl_c_as_a_dask_call_starts_prints_no_tornado_traceback(monkeypatch)
         (log.addFilter if had else log.removeFilter)(dask_executor.CANCEL_RACE)
     assert len(unfiltered) == 1 and isinstance(unfiltered[0], NameError), unfiltered
     assert [r.getMessage() for r in records.seen] == ["another error"]
+
+
+def test_the_publisher_sends_the_latest_of_each_key_in_order_and_everything_before_close():
+    # the solve's client hands its progress to a thread and never waits for the scheduler
+    import threading
+
+    from daskrad.distributed.dask_executor import Publisher
+
+    sent, entered, gate = [], threading.Event(), threading.Event()
+
+    def send(key, value):
+        if key == "bad":
+            raise OSError("the scheduler is gone")
+        if key == "first":
+            entered.set()
+            assert gate.wait(10)
+        sent.append((key, value))
+
+    pub = Publisher(send)
+    pub.put("first", 0)
+    assert entered.wait(10)                 # the thread is sending it, held at the gate
+    pub.put("progress", 1)
+    pub.put("preview", lambda: threading.current_thread().name)
+    pub.put("bad", 2)
+    pub.put("phase", 3)
+    pub.put("progress", 4)                  # replaces 1, in 1's place
+    gate.set()
+    pub.close()                             # returns once everything pending was sent
+    pub.put("late", 5)                      # after close: never sent
+    assert sent == [("first", 0), ("progress", 4), ("preview", "daskrad-publish"),
+                    ("phase", 3)]
+    # without its thread (the benchmark's reference arm) each message goes at once, in line
+    inline = []
+    pub = Publisher(lambda key, value: inline.append((key, value)), thread=False)
+    pub.put("preview", lambda: threading.current_thread().name)
+    assert inline == [("preview", threading.current_thread().name)]
+    pub.close()

@@ -57,6 +57,12 @@ TASK_SECONDS = 0.05
 #: such tasks a worker; giving its tasks a higher Dask priority measured the same.
 AHEAD_TASKS = 2
 
+#: Whether :meth:`DaskExecutor.publish` hands its messages to a :class:`Publisher` thread;
+#: False sends them (and renders a preview) in the caller's thread, as before:
+#: ``benchmarks/bench_client.py``'s reference arm (a benchmark's switch, read when the
+#: executor is made).
+PUBLISH_THREAD = True
+
 #: Custom dashboard page module (``/daskrad``), added to the scheduler's HTTP routes.
 ROUTES_MODULE = "daskrad.distributed.dashboard"
 
@@ -150,6 +156,9 @@ class DaskExecutor:
         self._count_workers()
         self.dashboard_link = _dashboard(client, dashboard_host)
         self.stats = {"wait": 0.0, "tasks": 0, "ahead": 0}
+        self._publisher = Publisher(
+            lambda key, value: client.set_metadata(["daskrad", key], value),
+            thread=PUBLISH_THREAD)
         # numbers every prefetched task's key: a patch dropped from the offer and offered again
         # while its first task is still alive must get a new task, not that one's future
         # (Client.submit hands back the live future of a key it already has)
@@ -362,8 +371,11 @@ class DaskExecutor:
                             for a in sorted(states)]}
 
     def publish(self, key: str, value) -> None:
-        """Progress for the ``/daskrad`` page (scheduler metadata, small JSON values)."""
-        self.client.set_metadata(["daskrad", key], value)
+        """Progress for the ``/daskrad`` page (scheduler metadata, small JSON values), sent
+        by a thread of its own (:class:`Publisher`): the solve's client does not wait for the
+        scheduler's answer, nor for a preview to render (``value`` may be a function of no
+        arguments, called on that thread). :meth:`close` sends what is left."""
+        self._publisher.put(key, value)
 
     def phase(self, name: str, fraction: float = 0.0, detail: str = "",
               force: bool = False) -> None:
@@ -388,6 +400,7 @@ class DaskExecutor:
         return self.client.gather(futures)
 
     def close(self) -> None:
+        self._publisher.close()       # the last progress reaches the page before the client goes
         if self.shared:
             worker.unshare(self.store.path)
         if self.own_client:
@@ -434,6 +447,67 @@ class DaskExecutor:
                 f"{self.store.path} (e.g. {w}: {why}); with --scheduler the output must be "
                 "on a file system every worker shares", self.store.given)
         self._probed = True
+
+
+class Publisher:
+    """Sends ``(key, value)`` messages with ``send(key, value)`` on a thread of its own, so
+    that the caller never waits for them: the solve's client published its progress and
+    preview between two batches and waited for the scheduler's answer each time (the
+    73,000-element Cornell box on 2 thread workers, ``benchmarks/bench_client.py``: the
+    client's seconds in the monitor 0.40 → 0.24, the solve 0.96×). Only the latest value of
+    a key not yet sent is sent (a page shows the latest); keys go in the order they were
+    first put. A value that is a function of no arguments is called on the thread (a
+    preview's render and PNG).
+    Progress is a view, never read back: a message that fails (a scheduler gone) is dropped,
+    and the run meets the lost scheduler at its next task. ``thread`` False: each message is
+    sent in the caller's thread as it is put (:data:`PUBLISH_THREAD`)."""
+
+    def __init__(self, send, thread: bool = True):
+        self._send = send
+        self._pending: dict = {}
+        self._cond = threading.Condition()
+        self._closed = False
+        self._thread = None
+        if thread:
+            self._thread = threading.Thread(target=self._loop, name="daskrad-publish",
+                                            daemon=True)
+            self._thread.start()
+
+    def put(self, key: str, value) -> None:
+        if self._thread is None:          # no thread: sent at once, in the caller's
+            if not self._closed:
+                self._deliver(key, value)
+            return
+        with self._cond:
+            if self._closed:
+                return
+            self._pending[key] = value
+            self._cond.notify_all()
+
+    def close(self) -> None:
+        """Send what is pending, then stop."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join()
+
+    def _loop(self) -> None:
+        while True:
+            with self._cond:
+                while not self._pending and not self._closed:
+                    self._cond.wait()
+                if not self._pending:
+                    return                  # closed, and all sent
+                key = next(iter(self._pending))
+                value = self._pending.pop(key)
+            self._deliver(key, value)
+
+    def _deliver(self, key: str, value) -> None:
+        try:
+            self._send(key, value() if callable(value) else value)
+        except Exception:  # noqa: BLE001, S110 - progress is a view, see the docstring
+            pass
 
 
 def rows_per_task(row_seconds: float | None) -> int:

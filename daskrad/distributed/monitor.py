@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import base64
 import dataclasses
+import functools
 import io
 import math
 import time
@@ -49,15 +50,17 @@ class Preview:
                                         elem_normal=self.h.elem_normal, vertex_radiance=None,
                                         camera=cam, spp=1)
 
-    def png_base64(self, sol: solve.Solution) -> str:
+    def png_base64(self, radiosity, unshot) -> str:
+        """The preview of the solution ``radiosity (E, 3)``, ``unshot (P, 3)`` (copies: the
+        executor's publisher renders it on a thread of its own while the solve goes on)."""
         from dataclasses import replace
 
         from PIL import Image
 
         from daskrad.io import tonemap
 
-        amb = solve.ambient(self.h, self.reflectance, sol.unshot)
-        shown = sol.radiosity + self.reflectance * amb
+        amb = solve.ambient(self.h, self.reflectance, unshot)
+        shown = radiosity + self.reflectance * amb
         ctx = replace(self.ctx, vertex_radiance=vertex_average(self.h, shown) / math.pi)
         buf = io.BytesIO()
         Image.fromarray(tonemap(render.render(ctx)), mode="RGB").save(buf, format="PNG")
@@ -122,7 +125,8 @@ class Watch:
                                   "converged": bool(sol.converged), "history": thinned})
         if self.preview is not None and (force or now - self._shown >= PREVIEW_SECONDS):
             self._shown = now
-            self.publish("preview", self.preview.png_base64(sol))
+            self.publish("preview", functools.partial(
+                self.preview.png_base64, sol.radiosity.copy(), sol.unshot.copy()))
 
 
 
