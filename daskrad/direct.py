@@ -65,9 +65,17 @@ CLASSES_MAX = 2**26
 #: elements (the benchmark's reference arm).
 POLYGON_OCCLUDERS = True
 
-#: Vertices per ``direct-<generation>-<n>`` task: ~2,000 vertices × (lights + 16 rays per
-#: emitting patch) is tens of milliseconds, well above Dask's ~2 ms per task.
+#: Vertices per ``direct-<generation>-<n>`` task at most: ~2,000 vertices × (lights + 16 rays
+#: per emitting patch) is tens of milliseconds, well above Dask's ~2 ms per task.
 BATCH_VERTICES = 2048
+#: A range of vertices is cut into at least this many tasks of at least
+#: :data:`MIN_BATCH_VERTICES` (:func:`batches`): a level of adaptive subdivision adds a few
+#: hundred to a few thousand vertices, which in tasks of 2,048 ran on one core while the
+#: other waited (the Cornell box's levels of 993 and 1,854 vertices: 0.17 s of its 0.18 s
+#: pass on one core). 1 cuts at :data:`BATCH_VERTICES` alone, as before
+#: (``benchmarks/bench_direct.py``'s reference arm).
+BATCH_SPLIT = 8
+MIN_BATCH_VERTICES = 256
 
 
 @dataclass(frozen=True)
@@ -420,8 +428,16 @@ def check_area_method(name: str) -> str:
     return name
 
 
-def batches(start: int, stop: int, size: int = BATCH_VERTICES) -> list[tuple[int, int]]:
-    """The vertex ranges ``[(a, b), ...]`` covering ``start:stop`` in order."""
+def batches(start: int, stop: int, size: int | None = None) -> list[tuple[int, int]]:
+    """The vertex ranges ``[(a, b), ...]`` covering ``start:stop`` in order, of ``size``
+    vertices (the last one shorter). By default :data:`BATCH_VERTICES`, or fewer so that
+    the range makes :data:`BATCH_SPLIT` tasks (at least :data:`MIN_BATCH_VERTICES` each): a
+    function of ``start`` and ``stop`` alone, never of the executor, since a vertex's value
+    depends on the one before it in its range (the face test's hint), so the bits are the
+    same on any number of workers."""
+    if size is None:
+        size = min(BATCH_VERTICES,
+                   max(MIN_BATCH_VERTICES, math.ceil((stop - start) / BATCH_SPLIT)))
     return [(a, min(a + size, stop)) for a in range(start, stop, size)]
 
 

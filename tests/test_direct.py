@@ -104,6 +104,23 @@ def test_direct_pass_same_bits_for_any_batching():
     assert np.array_equal(whole, parts)
 
 
+@pytest.mark.parametrize("start, stop", [(0, 993), (4291, 5284), (5284, 7138), (0, 100),
+                                         (0, 70_000), (7138, 7165)])
+def test_a_level_of_refinement_is_cut_into_tasks_for_every_core(start, stop):
+    # a level of subdivision adds hundreds to thousands of vertices: in ranges of 2,048 it ran
+    # on one core (the Cornell box's levels of 993 and 1,854 vertices). The ranges cover the
+    # level in order and depend on it alone (a vertex's value depends on the one before it in
+    # its range), so any executor computes the same ranges
+    ranges = direct.batches(start, stop)
+    assert ranges[0][0] == start and ranges[-1][1] == stop
+    assert all(b == c for (_, b), (c, _) in zip(ranges, ranges[1:], strict=False))
+    sizes = [b - a for a, b in ranges]
+    assert max(sizes) <= direct.BATCH_VERTICES and min(sizes) > 0
+    assert len(ranges) >= min(direct.BATCH_SPLIT,
+                              math.ceil((stop - start) / direct.MIN_BATCH_VERTICES))
+    assert ranges == direct.batches(start, stop)
+
+
 @pytest.mark.parametrize("rho", [0.5])
 def test_closed_room_lit_by_point_light_obeys_power_balance(rho):
     # Closed box, point light inside: all 4πI lands on the walls. Power balance with the
