@@ -104,6 +104,61 @@ def measure(rng, name, tris):
     }
 
 
+def on_threads(threads: int, fn, *args):
+    """``fn(*args)`` with numba's threads set to ``threads`` (restored after)."""
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(threads)
+    try:
+        return fn(*args)
+    finally:
+        numba.set_num_threads(before)
+
+
+def threads_table(rng) -> list[dict]:
+    """The client's two grid kernels on one thread and on every core, alternated
+    (``REPEATS`` pairs, medians): registering the triangles (:func:`G.build_grid`, which a
+    run does for its element and polygon grids, again after subdivision) and the view
+    region's primary rays (:func:`G.located_triangles`, a furnished room's 480,000), with
+    the same grid and the same triangles either way."""
+    import numba
+
+    cores = numba.get_num_threads()
+    rows = []
+    print(f"\nthe client's grid kernels, 1 thread against {cores} (medians of {REPEATS} "
+          "alternated pairs)")
+    print(f"{'scene':8} {'tris':>7} {'build 1':>9} {f'build {cores}':>9} {'ratio':>6} "
+          f"{'rays 1':>9} {f'rays {cores}':>9} {'ratio':>6} same")
+    for name, tris in (("soup", soup(rng, 100_000)), ("surface", surface(100_000))):
+        grid = G.build_grid(tris)
+        loc = G.locator(tris)
+        o, d, _, _, _ = rays(rng, tris, 480_000)
+        G.located_triangles(grid, loc, grid, o[:8], d[:8], 0.0, np.inf)    # compile
+        times = {k: [] for k in ("build 1", "build n", "rays 1", "rays n")}
+        for _ in range(REPEATS):
+            for label, threads in (("1", 1), ("n", cores)):
+                t = time.perf_counter()
+                built = on_threads(threads, G.build_grid, tris)
+                times[f"build {label}"].append(time.perf_counter() - t)
+                t = time.perf_counter()
+                hit = on_threads(threads, G.located_triangles, grid, loc, grid, o, d, 0.0,
+                                 np.inf)
+                times[f"rays {label}"].append(time.perf_counter() - t)
+                if label == "1":
+                    ref = (built, hit)
+        same = bool(np.array_equal(ref[0].cell_start, built.cell_start)
+                    and np.array_equal(ref[0].cell_items, built.cell_items)
+                    and np.array_equal(ref[1], hit))
+        m = {k: float(np.median(v)) for k, v in times.items()}
+        rows.append({"scene": name, "triangles": len(tris), "threads": cores, **m,
+                     "same": same})
+        print(f"{name:8} {len(tris):>7} {m['build 1']:>8.3f}s {m['build n']:>8.3f}s "
+              f"{m['build n'] / m['build 1']:>6.2f} {m['rays 1']:>8.3f}s {m['rays n']:>8.3f}s "
+              f"{m['rays n'] / m['rays 1']:>6.2f} {'yes' if same else 'NO'}", flush=True)
+    return rows
+
+
 def main() -> dict:
     rng = np.random.default_rng(2026)
     rows = []
@@ -133,6 +188,7 @@ def main() -> dict:
         "python": platform.python_version(),
         "machine": platform.machine(),
         "rows": rows,
+        "threads": threads_table(rng),
     }
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text(json.dumps(result, indent=2) + "\n")

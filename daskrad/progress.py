@@ -24,7 +24,9 @@ class Heartbeat:
     the step now running (:meth:`say`, :meth:`shots`), from a thread of its own, since a step
     waits on its tasks for minutes. A log otherwise heard nothing between the start of a
     furnished room's run and its end. On a terminal it prints the step lines itself (the bar
-    shows the solve); disabled (``-q``) it says nothing."""
+    shows the solve); disabled (``-q``) it says nothing. :meth:`close` ends it before the run
+    returns or raises, so a run's error line is its last (after the heartbeats of a long run
+    that failed: a scene that took minutes to load and was then refused)."""
 
     def __init__(self, enabled: bool, seconds: float | None = None):
         self.enabled = enabled
@@ -63,7 +65,11 @@ class Heartbeat:
     def _beat(self) -> None:
         while not self._stop.wait(self.seconds):
             minutes, secs = divmod(int(time.monotonic() - self._begun), 60)
-            print(f"daskrad: {minutes}:{secs:02d} {self.status}", file=sys.stderr, flush=True)
+            try:        # one write: a warning from the run's thread never splits the line
+                sys.stderr.write(f"daskrad: {minutes}:{secs:02d} {self.status}\n")
+                sys.stderr.flush()
+            except (OSError, ValueError):   # the log is gone (a closed pipe): say no more
+                return
 
 
 class Bar:

@@ -32,6 +32,7 @@ from daskrad.kernels.grid import (
     build_grid,
     closest_hit,
     closest_hit_located_batch,
+    located_triangles,
     locator,
 )
 from daskrad.kernels.shade import direct_at_hits
@@ -1240,7 +1241,10 @@ def seen_elements(ctx: RenderContext) -> np.ndarray:
     seen = np.zeros(E, bool)
     for rows, cols in tiles(ctx.camera.width, ctx.camera.height):
         o, d = primary_rays(ctx.camera, rows, cols, ctx.spp)
-        _, tri, _, _ = _closest(ctx, o, d)
+        if _hit_polygons(ctx) is not None:     # the client casts these alone: every core
+            tri = located_triangles(ctx.occluders, ctx.locator, ctx.grid, o, d, 0.0, np.inf)
+        else:
+            _, tri, _, _ = _closest(ctx, o, d)
         seen[ctx.tri_element[tri[tri >= 0]]] = True
     return seen
 

@@ -258,6 +258,11 @@ def compile_all() -> None:
                                     vertex_radiance=None, camera=None, spp=1, lights=lights)
         render.hidden_lights(view, lit.hierarchy, np.ones(
             (lit.hierarchy.n_elements, len(lights.emitter_corners)), bool))
+        # the view region's primary rays run only beyond render.GATHER_ALL junction vertices
+        from daskrad.kernels.grid import located_triangles, locator
+
+        located_triangles(lit.occluders.grid, locator(lit.grid.triangles), lit.grid,
+                          np.ones((1, 3)), -np.ones((1, 3)), 0.0, np.inf)
 
 
 def warmup(verbose: bool = True) -> float:

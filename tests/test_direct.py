@@ -109,8 +109,7 @@ def test_direct_pass_same_bits_for_any_batching():
 def test_a_level_of_refinement_is_cut_into_tasks_for_every_core(start, stop):
     # a level of subdivision adds hundreds to thousands of vertices: in ranges of 2,048 it ran
     # on one core (the Cornell box's levels of 993 and 1,854 vertices). The ranges cover the
-    # level in order and depend on it alone (a vertex's value depends on the one before it in
-    # its range), so any executor computes the same ranges
+    # level in order; they are a function of the level alone, so any executor computes them
     ranges = direct.batches(start, stop)
     assert ranges[0][0] == start and ranges[-1][1] == stop
     assert all(b == c for (_, b), (c, _) in zip(ranges, ranges[1:], strict=False))
@@ -118,7 +117,6 @@ def test_a_level_of_refinement_is_cut_into_tasks_for_every_core(start, stop):
     assert max(sizes) <= direct.BATCH_VERTICES and min(sizes) > 0
     assert len(ranges) >= min(direct.BATCH_SPLIT,
                               math.ceil((stop - start) / direct.MIN_BATCH_VERTICES))
-    assert ranges == direct.batches(start, stop)
 
 
 @pytest.mark.parametrize("rho", [0.5])

@@ -601,7 +601,7 @@ def test_the_publisher_sends_the_latest_of_each_key_in_order_and_everything_befo
     assert entered.wait(10)                 # the thread is sending it, held at the gate
     pub.put("progress", 1)
     pub.put("preview", lambda: threading.current_thread().name)
-    pub.put("bad", 2)
+    pub.put("bad", 2)                       # the scheduler refuses it: dropped
     pub.put("phase", 3)
     pub.put("progress", 4)                  # replaces 1, in 1's place
     gate.set()
@@ -609,6 +609,33 @@ def test_the_publisher_sends_the_latest_of_each_key_in_order_and_everything_befo
     pub.put("late", 5)                      # after close: never sent
     assert sent == [("first", 0), ("progress", 4), ("preview", "daskrad-publish"),
                     ("phase", 3)]
+
+    # a preview that fails is daskrad's bug: the next messages still go, close raises it
+    sent.clear()
+    pub = Publisher(send)
+    pub.put("preview", lambda: 1 / 0)
+    pub.put("phase", 6)
+    with pytest.raises(ZeroDivisionError):
+        pub.close()
+    assert sent == [("phase", 6)]
+
+    # idle, the thread ends (an executor never closed leaves none) and starts again
+    senders = []
+    Publisher.IDLE_SECONDS, idle = 0.01, Publisher.IDLE_SECONDS
+    try:
+        pub = Publisher(lambda key, value: senders.append(threading.current_thread()))
+        pub.put("phase", 7)
+        for _ in range(500):
+            if senders and not senders[0].is_alive():
+                break
+            time.sleep(0.01)
+        assert senders and not senders[0].is_alive()
+        pub.put("phase", 8)
+        pub.close()
+    finally:
+        Publisher.IDLE_SECONDS = idle
+    assert len(senders) == 2 and senders[1] is not senders[0]
+
     # without its thread (the benchmark's reference arm) each message goes at once, in line
     inline = []
     pub = Publisher(lambda key, value: inline.append((key, value)), thread=False)

@@ -420,6 +420,28 @@ def test_registration_covers_every_overlapped_cell(rng, placement):
         assert len(e_keys) < len(b_keys)
 
 
+@pytest.mark.parametrize("exact", [True, False])
+def test_registration_is_the_same_grid_on_any_number_of_threads(rng, exact):
+    # the triangles are registered side by side on numba's threads: the same lists, each
+    # cell's triangles in ascending order, as one thread gives them
+    import numba
+
+    tris = soup(rng, 2000, offset=0.0, flat_axis=None)
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = G.build_grid(tris, density=4.0, exact=exact)
+    finally:
+        numba.set_num_threads(threads)
+    many = G.build_grid(tris, density=4.0, exact=exact)
+    np.testing.assert_array_equal(one.cell_start, many.cell_start)
+    np.testing.assert_array_equal(one.cell_items, many.cell_items)
+    cells, items = registered_pairs(many)
+    order = np.lexsort((items, cells))
+    np.testing.assert_array_equal(order, np.arange(len(items)))
+    assert len(items) > len(tris)          # triangles lie in several cells: not vacuous
+
+
 def test_huge_diagonal_triangle_registers_a_sheet_not_the_whole_box():
     # One triangle across the whole box on the plane x + y + z = 1.5, plus tiny ones at the
     # corners to fix the box: SAT registers ~a plane's worth of cells, not all of them.

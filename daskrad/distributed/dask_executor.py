@@ -400,15 +400,17 @@ class DaskExecutor:
         return self.client.gather(futures)
 
     def close(self) -> None:
-        self._publisher.close()       # the last progress reaches the page before the client goes
-        if self.shared:
-            worker.unshare(self.store.path)
-        if self.own_client:
-            self.client.close()
-        if self.cluster is not None:
-            self.cluster.close()
-        if self._tmp is not None:
-            shutil.rmtree(self._tmp, ignore_errors=True)
+        try:        # the last progress reaches the page before the client goes
+            self._publisher.close()
+        finally:    # and the cluster is closed whatever the publisher or a Ctrl-C did
+            if self.shared:
+                worker.unshare(self.store.path)
+            if self.own_client:
+                self.client.close()
+            if self.cluster is not None:
+                self.cluster.close()
+            if self._tmp is not None:
+                shutil.rmtree(self._tmp, ignore_errors=True)
 
     # --- helpers ----------------------------------------------------------------------------
 
@@ -458,56 +460,77 @@ class Publisher:
     a key not yet sent is sent (a page shows the latest); keys go in the order they were
     first put. A value that is a function of no arguments is called on the thread (a
     preview's render and PNG).
-    Progress is a view, never read back: a message that fails (a scheduler gone) is dropped,
-    and the run meets the lost scheduler at its next task. ``thread`` False: each message is
-    sent in the caller's thread as it is put (:data:`PUBLISH_THREAD`)."""
+
+    Progress is a view, never read back: a message the scheduler does not take (it is gone)
+    is dropped, and the run meets the lost scheduler at its next task. A value's function
+    that fails is daskrad's own bug: the first such error is raised by :meth:`close`. The
+    thread ends when nothing was put for :data:`IDLE_SECONDS` (an executor a test never
+    closes leaves no thread behind) and starts again at the next message. ``thread`` False:
+    each message is sent in the caller's thread as it is put (:data:`PUBLISH_THREAD`), and
+    its errors raised there, as before."""
+
+    #: Seconds without a message after which the thread ends.
+    IDLE_SECONDS = 5.0
+    #: Seconds :meth:`close` waits for the messages still pending (a scheduler that went
+    #: away may hold each for its connect timeout; the run's own end or error comes first).
+    CLOSE_SECONDS = 10.0
 
     def __init__(self, send, thread: bool = True):
         self._send = send
         self._pending: dict = {}
         self._cond = threading.Condition()
         self._closed = False
-        self._thread = None
-        if thread:
-            self._thread = threading.Thread(target=self._loop, name="daskrad-publish",
-                                            daemon=True)
-            self._thread.start()
+        self._threaded = thread
+        self._thread: threading.Thread | None = None
+        self.failure: BaseException | None = None
 
     def put(self, key: str, value) -> None:
-        if self._thread is None:          # no thread: sent at once, in the caller's
+        if not self._threaded:            # no thread: sent at once, in the caller's
             if not self._closed:
-                self._deliver(key, value)
+                self._send(key, value() if callable(value) else value)
             return
         with self._cond:
             if self._closed:
                 return
             self._pending[key] = value
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._loop, name="daskrad-publish",
+                                                daemon=True)
+                self._thread.start()
             self._cond.notify_all()
 
     def close(self) -> None:
-        """Send what is pending, then stop."""
+        """Send what is pending (for :data:`CLOSE_SECONDS` at most), then stop; raise the
+        first error of a value's function."""
         with self._cond:
             self._closed = True
+            thread = self._thread
             self._cond.notify_all()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join()
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(self.CLOSE_SECONDS)
+        if self.failure is not None:
+            raise self.failure
 
     def _loop(self) -> None:
         while True:
             with self._cond:
-                while not self._pending and not self._closed:
-                    self._cond.wait()
+                if not self._pending and not self._closed:
+                    self._cond.wait(self.IDLE_SECONDS)
                 if not self._pending:
-                    return                  # closed, and all sent
+                    self._thread = None     # closed and all sent, or idle: a put starts anew
+                    return
                 key = next(iter(self._pending))
                 value = self._pending.pop(key)
-            self._deliver(key, value)
-
-    def _deliver(self, key: str, value) -> None:
-        try:
-            self._send(key, value() if callable(value) else value)
-        except Exception:  # noqa: BLE001, S110 - progress is a view, see the docstring
-            pass
+            if callable(value):
+                try:
+                    value = value()
+                except Exception as err:  # noqa: BLE001 - daskrad's own bug: close raises it
+                    self.failure = self.failure or err
+                    continue
+            try:
+                self._send(key, value)
+            except Exception:  # noqa: BLE001, S110 - the scheduler is gone: see the docstring
+                pass
 
 
 def rows_per_task(row_seconds: float | None) -> int:
