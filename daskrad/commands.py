@@ -164,6 +164,7 @@ def render_command(args) -> None:
     from daskrad.errors import OptionError
     from daskrad.io import write_exr, write_png
     from daskrad.output import Outputs
+    from daskrad.progress import Heartbeat
     from daskrad.render import pixels
 
     outputs = Outputs.of(args.output)
@@ -178,9 +179,12 @@ def render_command(args) -> None:
     t = time.perf_counter()
     # the view's junction gather and tiles on every core, as an in-process run renders
     ex = InProcess()
+    beat = Heartbeat(not args.quiet)        # a log hears a long render every 30 s
     try:
+        beat.say(f"rendering {cam.width} x {cam.height}")
         image = pixels(replace(ctx, camera=cam, spp=spp, edge_spp=edge_spp), ex)
     finally:
+        beat.close()
         ex.close()
     write_exr(outputs.exr, image)
     write_png(outputs.png, image, stops=args.exposure or 0.0)

@@ -12,6 +12,7 @@ re-render reads back the very context the run's image was rendered from.
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -284,6 +285,22 @@ def test_render_gives_the_runs_bits_and_leaves_the_store_as_it_was(straight, tmp
     np.testing.assert_array_equal(read_exr(tmp_path / "view.exr"), read_exr(straight))
     assert (tmp_path / "view.png").read_bytes() == straight.with_suffix(".png").read_bytes()
     assert tree(store) == before
+
+
+def test_a_log_hears_a_render_every_heartbeat(straight, tmp_path, capsys, monkeypatch):
+    # a re-render in a batch job's log said nothing until it ended; -q still says nothing
+    from daskrad import progress
+
+    monkeypatch.setattr(progress, "HEARTBEAT_SECONDS", 0.01)
+    store = straight.with_suffix(".zarr")
+    args = ("render", store, "-o", tmp_path / "view.exr", "--width", "200", "--height", "150")
+    code, _, err = daskrad(capsys, *args)
+    assert code == 0, err
+    beats = [x for x in err.splitlines() if x.startswith("daskrad: ")]
+    assert beats and all(re.fullmatch(r"daskrad: \d+:\d\d rendering 200 x 150", x)
+                         for x in beats), err
+    code, _, err = daskrad(capsys, *args, "-q")
+    assert code == 0 and not err.strip(), err
 
 
 def test_render_with_another_camera_gives_the_bits_of_a_full_run_with_it(straight, tmp_path,
