@@ -33,10 +33,14 @@ def settings_from_args(args) -> Settings:
 def resume_hint(output: str) -> str:
     """What an interrupted run of ``output`` leaves: a store ``--resume`` continues (a new
     run's partial store, or the finished one of an earlier run), or none yet."""
-    from daskrad.output import Outputs, has_checkpoint, is_store
+    from daskrad.output import Outputs, has_checkpoint, is_store, store_attributes
 
     outs = Outputs(Path(output))
-    if has_checkpoint(outs.partial) or (not is_store(outs.partial) and is_store(outs.store)):
+    if has_checkpoint(outs.partial):
+        shot = (store_attributes(outs.partial) or {}).get("iteration")
+        at = f" (shot {shot:,})" if isinstance(shot, int) and not isinstance(shot, bool) else ""
+        return f"the last checkpoint{at} is kept (use --resume)"
+    if not is_store(outs.partial) and is_store(outs.store):
         return "the last checkpoint is kept (use --resume)"
     if is_store(outs.partial):
         return "it stopped before its first checkpoint: nothing to resume yet"

@@ -33,6 +33,9 @@ class Heartbeat:
         self.terminal = sys.stderr.isatty()
         self.status = "loading and meshing the scene"   # the step now running
         self.seconds = float(HEARTBEAT_SECONDS if seconds is None else seconds)
+        self.beats = 0                  # lines written to the log so far
+        self._end: str | None = None
+        self._lock = threading.Lock()
         self._begun = time.monotonic()
         self._stop = threading.Event()
         self._thread = None
@@ -44,10 +47,18 @@ class Heartbeat:
     def say(self, message: str) -> None:
         """The step that starts now: one line ``daskrad: <message>`` on a terminal (the
         direct pass, the render: tens of seconds in a furnished room, before and after the
-        bar), the next heartbeat's status otherwise."""
+        bar); in a log the next heartbeat's status, and a line at once in a run long enough
+        to have had a heartbeat (the log then shows when each later step began)."""
         self.status = message
         if self.enabled and self.terminal:
             print(f"daskrad: {message}", file=sys.stderr, flush=True)
+        elif self._thread is not None and self.beats:
+            self._line(message)
+
+    def ended(self, summary: str) -> None:
+        """How the run ended (``done: 967 shots, converged``), written at :meth:`close` to a
+        log that had a heartbeat: its last line is then the run's end, not a step of it."""
+        self._end = summary
 
     def shots(self, sol: Solution, tolerance: float) -> None:
         """The solve's progress after a batch, for the next heartbeat."""
@@ -57,19 +68,31 @@ class Heartbeat:
                            f"(tolerance {tolerance:.0e})")
 
     def close(self) -> None:
-        """No more lines (the run ended, or failed: its error is the last line)."""
+        """No more lines (the run ended, or failed: its error is the last line), but the
+        end (:meth:`ended`) of a run that had a heartbeat."""
         self._stop.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join()
+            if self._end is not None and self.beats:
+                self._line(self._end)
 
     def _beat(self) -> None:
         while not self._stop.wait(self.seconds):
-            minutes, secs = divmod(int(time.monotonic() - self._begun), 60)
-            try:        # one write: a warning from the run's thread never splits the line
-                sys.stderr.write(f"daskrad: {minutes}:{secs:02d} {self.status}\n")
-                sys.stderr.flush()
-            except (OSError, ValueError):   # the log is gone (a closed pipe): say no more
+            if not self._line(self.status):
                 return
+
+    def _line(self, text: str) -> bool:
+        """``daskrad: M:SS text`` in one write (a warning from the run's thread never splits
+        it); False when the log is gone (a closed pipe)."""
+        minutes, secs = divmod(int(time.monotonic() - self._begun), 60)
+        with self._lock:
+            try:
+                sys.stderr.write(f"daskrad: {minutes}:{secs:02d} {text}\n")
+                sys.stderr.flush()
+            except (OSError, ValueError):
+                return False
+            self.beats += 1
+        return True
 
 
 class Bar:

@@ -128,6 +128,8 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
     beat.status = "writing the image and the report"
     outputs.publish(Path(store.path))
     output.write(outputs, image, report, settings.exposure)                       # 5
+    beat.ended(f"done: {sol.iteration:,} shots, "
+               + ("converged" if sol.converged else "not converged"))
     if replaced and not resume:
         output.note(f"replaced the earlier results {', '.join(p.name for p in replaced)}")
     return report

@@ -419,7 +419,8 @@ def test_a_log_hears_the_step_now_running_every_heartbeat(tmp_path, monkeypatch)
 
     steps = [r"loading and meshing the scene", r"direct light at [\d,]+ vertices",
              r"shooting: shot [\d,]+, relative unshot RMS \d\.\de[-+]\d\d \(tolerance 1e-03\)",
-             rf"rendering {SMALL.width} x {SMALL.height}", r"writing the image and the report"]
+             rf"rendering {SMALL.width} x {SMALL.height}", r"writing the image and the report",
+             r"done: [\d,]+ shots, (not )?converged"]
     monkeypatch.setattr(progress, "HEARTBEAT_SECONDS", 0.02)
     for err, progress_on, heard in ((io.StringIO(), True, True), (io.StringIO(), False, False),
                                     (Terminal(), True, False)):
@@ -436,6 +437,8 @@ def test_a_log_hears_the_step_now_running_every_heartbeat(tmp_path, monkeypatch)
             assert kinds, line
             order.append(kinds[0])
         assert order == sorted(order), beats
+        if heard:       # the log's last line is how the run ended
+            assert re.fullmatch(r"daskrad: \d+:\d\d done: [\d,]+ shots, converged", beats[-1])
 
     # the solve's status follows its last batch; closed, the heartbeat says no more
     err = io.StringIO()

@@ -117,7 +117,10 @@ def test_ctrl_c_in_a_terminal_with_worker_processes_is_one_line(uninterrupted, t
     _, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130
     lines = [line for line in stderr.splitlines() if not line.startswith("daskrad: dashboard")]
-    assert lines == ["daskrad: interrupted; the last checkpoint is kept (use --resume)"], stderr
+    # the line names the shot the kept checkpoint holds
+    shot = _root_attrs(store)["iteration"]
+    assert lines == [f"daskrad: interrupted; the last checkpoint (shot {shot:,}) is kept "
+                     "(use --resume)"], stderr
     resumed = subprocess.run([*args, "--resume"], capture_output=True, text=True, timeout=240)
     assert resumed.returncode == 0, resumed.stderr
     assert_same_run(uninterrupted, out)
