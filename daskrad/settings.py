@@ -124,6 +124,9 @@ class Settings:
         for name in ("patch_size", "element_size", "min_element_size"):
             positive(name, optional=True)
         positive("tolerance", zero=True)       # 0: shoot max_iterations times
+        if self.tolerance >= 1.0:               # the relative unshot RMS starts at 1
+            bad("tolerance", "must be in [0, 1) (the relative unshot RMS starts at 1: a run "
+                "would stop before its first shot)")
         if self.max_iterations is not None:      # None: from the patch count
             integer("max_iterations", 0)
         integer("batch", 1, 1 << 16)

@@ -94,6 +94,7 @@ BAD = {
     "image": dict(width=100_000, height=100_000),
     "spp": dict(spp=0),
     "tolerance": dict(tolerance=float("nan")),
+    "tolerance of 1": dict(tolerance=1.0),       # would stop before the first shot
     "element size": dict(element_size=-1.0),
     "dashboard": dict(dashboard="notaport"),
     "scheduler": dict(scheduler="notanaddress"),
@@ -146,7 +147,7 @@ def cli_run(*args: str) -> subprocess.CompletedProcess:
                                     ["--scheduler", "notanaddress"],
                                     ["--element-size", "0.01"],
                                     ["--processes", "--workers", "0"],
-                                    ["--relaxation", "2"]])
+                                    ["--relaxation", "2"], ["--tolerance", "2"]])
 def test_bad_option_fails_at_once_and_leaves_earlier_outputs(earlier, tmp_path, option):
     # validated before the scene is loaded and before the old store is touched
     shutil.copytree(earlier, tmp_path / "out")
