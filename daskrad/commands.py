@@ -33,16 +33,17 @@ def settings_from_args(args) -> Settings:
 def resume_hint(output: str) -> str:
     """What an interrupted run of ``output`` leaves: a store ``--resume`` continues (a new
     run's partial store, or the finished one of an earlier run), or none yet."""
-    from daskrad.output import Outputs, has_checkpoint, is_store, store_attributes
+    from daskrad.output import Outputs, is_store, store_attributes
 
     outs = Outputs(Path(output))
-    if has_checkpoint(outs.partial):
-        shot = (store_attributes(outs.partial) or {}).get("iteration")
+    partial = store_attributes(outs.partial)       # read once: None when there is no store
+    if partial is not None and partial.get("checkpoint") is not None:   # a slot: 0 is one
+        shot = partial.get("iteration")
         at = f" (shot {shot:,})" if isinstance(shot, int) and not isinstance(shot, bool) else ""
         return f"the last checkpoint{at} is kept (use --resume)"
-    if not is_store(outs.partial) and is_store(outs.store):
+    if partial is None and is_store(outs.store):
         return "the last checkpoint is kept (use --resume)"
-    if is_store(outs.partial):
+    if partial is not None:
         return "it stopped before its first checkpoint: nothing to resume yet"
     return "it stopped before its solution store was written: nothing to resume"
 

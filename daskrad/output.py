@@ -38,12 +38,6 @@ def is_store(path: Path) -> bool:
     return store_attributes(path) is not None
 
 
-def has_checkpoint(path: Path) -> bool:
-    """Whether the store at ``path`` holds a checkpoint a ``--resume`` continues from (a run
-    stopped before its first one left a store with none)."""
-    return (store_attributes(path) or {}).get("checkpoint") is not None    # a slot: 0 is one
-
-
 def store_attributes(path: Path) -> dict | None:
     """The root attributes of the daskrad store at ``path`` (:func:`is_store`), else None."""
     meta = Path(path) / "zarr.json"
