@@ -20,7 +20,7 @@ HEARTBEAT_SECONDS = 30.0
 class Heartbeat:
     """Progress where the bar cannot show: when ``enabled`` and stderr is not a terminal,
     a line every ``seconds`` (:data:`HEARTBEAT_SECONDS`), ``daskrad: 2:30 shooting: shot
-    4,120, relative unshot RMS 3.1e-03 (tolerance 1e-03)``: the time since the run began and
+    4,120, relative unshot RMS 3.1e-03 (tolerance 0.001)``: the time since the run began and
     the step now running (:meth:`say`, :meth:`shots`), from a thread of its own, since a step
     waits on its tasks for minutes. A log otherwise heard nothing between the start of a
     furnished room's run and its end. On a terminal it prints the step lines itself (the bar
@@ -65,7 +65,7 @@ class Heartbeat:
         if sol.history:
             it, rms, _ = sol.history[-1]
             self.status = (f"shooting: shot {int(it):,}, relative unshot RMS {rms:.1e} "
-                           f"(tolerance {tolerance:.0e})")
+                           f"(tolerance {tolerance:g})")
 
     def close(self) -> None:
         """No more lines (the run ended, or failed: its error is the last line), but the

@@ -419,7 +419,7 @@ def test_a_log_hears_the_step_now_running_every_heartbeat(tmp_path, monkeypatch)
             return True
 
     steps = [r"loading and meshing the scene", r"direct light at [\d,]+ vertices",
-             r"shooting: shot [\d,]+, relative unshot RMS \d\.\de[-+]\d\d \(tolerance 1e-03\)",
+             r"shooting: shot [\d,]+, relative unshot RMS \d\.\de[-+]\d\d \(tolerance 0\.001\)",
              rf"rendering {SMALL.width} x {SMALL.height}", r"writing the image and the report",
              r"done: [\d,]+ shots, (not )?converged"]
     monkeypatch.setattr(progress, "HEARTBEAT_SECONDS", 0.02)
@@ -447,7 +447,7 @@ def test_a_log_hears_the_step_now_running_every_heartbeat(tmp_path, monkeypatch)
     beat = progress.Heartbeat(True, seconds=0.005)
     beat.shots(Solution(radiosity=None, direct=None, unshot=None, initial_rms=1.0,
                         history=[(4120, 3.14e-3, 9.0)]), 1e-3)
-    shooting = " shooting: shot 4,120, relative unshot RMS 3.1e-03 (tolerance 1e-03)"
+    shooting = " shooting: shot 4,120, relative unshot RMS 3.1e-03 (tolerance 0.001)"
     for _ in range(400):
         if shooting in err.getvalue():
             break
@@ -457,6 +457,10 @@ def test_a_log_hears_the_step_now_running_every_heartbeat(tmp_path, monkeypatch)
     assert said.splitlines()[-1].endswith(shooting), said
     time.sleep(0.03)
     assert err.getvalue() == said
+    # the tolerance as given, not rounded to a power of ten
+    beat.shots(Solution(radiosity=None, direct=None, unshot=None, initial_rms=1.0,
+                        history=[(8, 0.5, 0.1)]), 2.5e-3)
+    assert beat.status.endswith("(tolerance 0.0025)"), beat.status
 
 
 def test_info_counts_in_words_that_agree(capsys):
