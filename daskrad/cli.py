@@ -4,12 +4,15 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
+import signal
 import sys
+import threading
 import warnings
 
 from daskrad import __version__
-from daskrad.errors import DaskradError, DaskradWarning
+from daskrad.errors import DaskradError, DaskradWarning, Terminated, interrupted
 
 
 class _Parser(argparse.ArgumentParser):
@@ -289,7 +292,35 @@ def entry(argv: list[str] | None = None) -> int:
     return code
 
 
+def _terminate(signum, frame):
+    raise Terminated("terminated")
+
+
+@contextlib.contextmanager
+def _sigterm_stops_like_ctrl_c():
+    """SIGTERM raises :class:`daskrad.errors.Terminated` in the block, as SIGINT raises
+    KeyboardInterrupt: ``kill``, a batch system's stop or a container's shutdown then keep
+    the last checkpoint, release the output's lock and say so in one line, where the default
+    action killed the process silently and left ``.OUT.lock`` behind. Only from the main
+    thread (signals reach it alone), and only over the default action: a handler the caller
+    set stays."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL):
+        yield
+        return
+    signal.signal(signal.SIGTERM, _terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def _main(args) -> int:
+    with _sigterm_stops_like_ctrl_c():
+        return _command(args)
+
+
+def _command(args) -> int:
     try:
         import numpy as np
 
@@ -318,11 +349,18 @@ def _main(args) -> int:
         what = getattr(err, "strerror", None) or str(err) or type(err).__name__
         sys.stderr.write(f"daskrad: error: {where}{what}\n")
         return 2
-    except KeyboardInterrupt as err:
+    except (KeyboardInterrupt, SystemError) as err:
+        # Ctrl-C or SIGTERM inside a numba kernel surfaces as a SystemError chained to it
+        stop = interrupted(err)
+        if stop is None:
+            raise
+        err = err if isinstance(err, KeyboardInterrupt) else stop
         # a run says what it leaves (commands.resume_hint); elsewhere nothing is claimed
-        why = getattr(err, "message", None)
-        sys.stderr.write(f"daskrad: interrupted; {why}\n" if why else "daskrad: interrupted\n")
-        return 130
+        why = getattr(err, "message", None) if not isinstance(err, Terminated) else None
+        terminated = isinstance(err, Terminated) or getattr(err, "terminated", False)
+        word = "terminated" if terminated else "interrupted"
+        sys.stderr.write(f"daskrad: {word}; {why}\n" if why else f"daskrad: {word}\n")
+        return 143 if terminated else 130
     return 0
 
 

@@ -13,7 +13,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from daskrad.errors import Interrupted
+from daskrad.errors import Interrupted, Terminated, interrupted
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
 
@@ -50,7 +50,7 @@ def resume_hint(output: str) -> str:
 
 def run_command(args) -> None:
     from daskrad import warmup
-    from daskrad.run import interrupted, run
+    from daskrad.run import run
 
     settings = settings_from_args(args)
     output = args.output or str(Path(args.scene).with_suffix(".exr").name)
@@ -74,9 +74,10 @@ def run_command(args) -> None:
     except (SystemError, KeyboardInterrupt) as err:
         # Ctrl-C inside a numba kernel surfaces as "SystemError: ... returned a result with
         # an exception set" chained to the KeyboardInterrupt: report it as the interrupt
-        if not interrupted(err):
+        stop = interrupted(err)
+        if stop is None:
             raise
-        raise Interrupted(resume_hint(output)) from None
+        raise Interrupted(resume_hint(output), isinstance(stop, Terminated)) from None
     out = Path(output)
     if args.dashboard is not None and not report["workers"] and settings.scheduler is None:
         from daskrad.output import warn

@@ -30,11 +30,19 @@ class OptionError(DaskradError):
 
 
 class Interrupted(KeyboardInterrupt):
-    """Ctrl-C, with the line the CLI prints about what is left to resume from."""
+    """Ctrl-C (or SIGTERM: ``terminated``), with the line the CLI prints about what is left
+    to resume from."""
 
-    def __init__(self, message: str):
+    def __init__(self, message: str, terminated: bool = False):
         self.message = message
+        self.terminated = terminated
         super().__init__(message)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill``, a batch system's stop, a container's shutdown) while a command runs:
+    it stops the command as Ctrl-C does (the last checkpoint kept, the lock released, one
+    line), and the CLI exits with 143 (128 + 15) where Ctrl-C exits with 130."""
 
 
 class DaskradWarning(UserWarning):
@@ -48,3 +56,12 @@ class DaskradWarning(UserWarning):
 class StoreError(OptionError):
     """The solution store given (``--resume``, ``daskrad render``, ``daskrad export``) is
     missing, damaged, unfinished or was written from other inputs or settings."""
+
+
+def interrupted(err: BaseException | None) -> KeyboardInterrupt | None:
+    """The Ctrl-C (or SIGTERM, :class:`daskrad.errors.Terminated`) ``err`` comes from, None if
+    it comes from none (inside a numba kernel it surfaces as a SystemError chained to the
+    KeyboardInterrupt)."""
+    while err is not None and not isinstance(err, KeyboardInterrupt):
+        err = err.__cause__ or err.__context__
+    return err

@@ -25,6 +25,7 @@ from daskrad import direct, output, render, solve
 from daskrad.distributed import auto_workers, check_scheduler, executor_for, start_early
 from daskrad.distributed.monitor import Preview, Watch
 from daskrad.distributed.store import Store
+from daskrad.errors import interrupted
 from daskrad.mesh import Hierarchy
 from daskrad.preprocess import preprocess
 from daskrad.progress import Bar, Heartbeat
@@ -111,7 +112,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
             bar.close()
         # a stopped run keeps its checkpoint; a copy of the finished store that holds
         # nothing new yet (a resume refused, or stopped before it began) goes
-        if not (resume or interrupted(err)) or (copied and not began):
+        if not (resume or interrupted(err) is not None) or (copied and not began):
             outputs.discard(Path(store.path))
         raise
     finally:
@@ -153,14 +154,6 @@ def solve_scene(scene, settings: Settings, executor=None, on_batch=None) -> Solv
     light = direct.light(scene, preprocess(scene, settings), settings, ex)
     sol = solve.radiosity(light, settings, ex, on_batch=on_batch)
     return Solved(light.mesh.hierarchy, light.mesh.reflectance, sol, light)
-
-
-def interrupted(err: BaseException | None) -> bool:
-    """Whether ``err`` comes from Ctrl-C (inside a numba kernel it surfaces as a SystemError
-    chained to the KeyboardInterrupt)."""
-    while err is not None and not isinstance(err, KeyboardInterrupt):
-        err = err.__cause__ or err.__context__
-    return err is not None
 
 
 def _announce(executor, settings: Settings) -> None:

@@ -21,7 +21,7 @@ import pytest
 
 from daskrad.distributed.dask_executor import DaskExecutor
 from daskrad.distributed.store import FORMAT, Store
-from daskrad.errors import OptionError
+from daskrad.errors import OptionError, Terminated
 from daskrad.io import read_exr
 from daskrad.output import Outputs
 from daskrad.run import run
@@ -85,11 +85,21 @@ def test_sigkill_then_resume_on_a_cluster_gives_the_same_bits(uninterrupted, tmp
     assert_same_run(uninterrupted, out)
 
 
-def test_ctrl_c_then_resume_from_the_command_line(uninterrupted, tmp_path):
+@pytest.mark.parametrize("sig, code, word", [(signal.SIGINT, 130, "interrupted"),
+                                            (signal.SIGTERM, 143, "terminated")],
+                         ids=["ctrl-c", "sigterm"])
+def test_ctrl_c_or_sigterm_then_resume_from_the_command_line(uninterrupted, tmp_path, sig,
+                                                             code, word):
+    # SIGTERM (kill, a batch system's stop) stops a run as Ctrl-C does: one line naming the
+    # kept checkpoint, the output's lock released, and --resume finishes to the same bits
     out = tmp_path / "interrupted.exr"
-    stopped = _start_and_stop_after_first_checkpoint(out, signal.SIGINT)
-    assert stopped.returncode == 130
-    assert "--resume" in stopped.stderr and "Traceback" not in stopped.stderr
+    stopped = _start_and_stop_after_first_checkpoint(out, sig)
+    assert stopped.returncode == code, stopped.stderr
+    shot = _root_attrs(Outputs(out).partial)["iteration"]
+    assert stopped.stderr.splitlines()[-1] == (
+        f"daskrad: {word}; the last checkpoint (shot {shot:,}) is kept (use --resume)")
+    assert "Traceback" not in stopped.stderr
+    assert not (tmp_path / ".interrupted.lock").exists()
     resumed = subprocess.run([sys.executable, "-m", "daskrad", "run", str(CORNELL), "-o",
                               str(out), "--workers", "0", "--resume", *ARGS],
                              capture_output=True, text=True, timeout=240)
@@ -573,30 +583,39 @@ def test_a_checkpoint_names_its_slot_in_one_write_of_the_root_metadata(tmp_path,
         0, 8, [[8, 0.5, 1.0]])
 
 
-def test_ctrl_c_during_a_store_write_waits_for_it_to_finish(tmp_path, monkeypatch):
-    # SIGINT arriving while zarr writes (here: at the first file a checkpoint replaces) is
-    # held until the checkpoint is complete, then raised: the slot is named, nothing is left
-    # half-written and no zarr task is abandoned
+def _raise_terminated(signum, frame):
+    raise Terminated("terminated")
+
+
+@pytest.mark.parametrize("sig, handler, raised", [
+    (signal.SIGINT, signal.default_int_handler, KeyboardInterrupt),
+    (signal.SIGTERM, _raise_terminated, Terminated)], ids=["ctrl-c", "sigterm"])
+def test_ctrl_c_during_a_store_write_waits_for_it_to_finish(tmp_path, monkeypatch, sig,
+                                                            handler, raised):
+    # SIGINT (or SIGTERM, which the CLI turns into the same stop) arriving while zarr writes
+    # (here: at the first file a checkpoint replaces) is held until the checkpoint is
+    # complete, then raised: the slot is named, nothing is left half-written and no zarr
+    # task is abandoned
     import os
 
     h, store, sol = _store_at_iteration_8(tmp_path / "s.zarr")
     replace = Path.replace
     sent = []
-    # Python's own SIGINT handler, whatever the runner inherited (ignored in a background job)
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    # a handler that raises, whatever the runner inherited (ignored in a background job)
+    previous = signal.signal(sig, handler)
 
     def interrupting(self, target):
         if not sent:
             sent.append(True)
-            os.kill(os.getpid(), signal.SIGINT)
+            os.kill(os.getpid(), sig)
         return replace(self, target)
 
     monkeypatch.setattr(Path, "replace", interrupting)
     try:
-        with pytest.raises(KeyboardInterrupt):
+        with pytest.raises(raised):
             store.checkpoint(sol)
     finally:
-        signal.signal(signal.SIGINT, previous)
+        signal.signal(sig, previous)
     assert sent
     monkeypatch.setattr(Path, "replace", replace)
     attrs = _root_attrs(tmp_path / "s.zarr")

@@ -630,3 +630,19 @@ def test_the_command_is_main_with_the_exit_collection_skipped(capsys, tmp_path):
     assert done.returncode == 0, done.stderr
     report = json.loads(out.with_suffix(".json").read_text())
     assert report["iterations"] > 0 and read_exr(out).shape == (48, 48, 3)
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 400, 401, 1000])
+def test_the_dashboard_curve_keeps_the_first_and_last_points_once_each(n):
+    from daskrad.distributed import monitor
+
+    history = [[8 * (k + 1), 1.0 / (k + 1), 0.01 * k] for k in range(n)]
+    points = monitor.curve(history)
+    assert len(points) <= monitor.CURVE_POINTS + 1
+    assert len(points) == min(n, len({tuple(p) for p in points}))     # no point twice
+    iterations = [p[0] for p in points]
+    assert iterations == sorted(iterations)
+    if n:
+        assert points[0] == history[0] and points[-1] == history[-1]
+    else:
+        assert points == []

@@ -112,8 +112,6 @@ class Watch:
             return
         self._sent = now
         hist = sol.history
-        step = max(1, math.ceil(len(hist) / CURVE_POINTS))
-        thinned = [list(x) for x in hist[::step]] + ([list(hist[-1])] if hist else [])
         it, rms, sec = hist[-1] if hist else (sol.iteration, 1.0, sol.seconds)
         phase = getattr(self.executor, "phase", None)
         if phase is not None:
@@ -122,12 +120,23 @@ class Watch:
         self.publish("progress", {**self.info, "workers": self.executor.workers,
                                   "iteration": int(it),
                                   "relative_unshot_rms": float(rms), "seconds": round(sec, 2),
-                                  "converged": bool(sol.converged), "history": thinned})
+                                  "converged": bool(sol.converged), "history": curve(hist)})
         if self.preview is not None and (force or now - self._shown >= PREVIEW_SECONDS):
             self._shown = now
             self.publish("preview", functools.partial(
                 self.preview.png_base64, sol.radiosity.copy(), sol.unshot.copy()))
 
+
+
+def curve(history: list) -> list[list]:
+    """The dashboard's curve of a solve's ``history`` (``[iteration, relative unshot RMS,
+    seconds]`` per applied batch): at most ``CURVE_POINTS + 1`` of its points, every k-th and
+    the last, each once, in order (a one-batch history is one point, not its first twice)."""
+    step = max(1, math.ceil(len(history) / CURVE_POINTS))
+    picked = list(range(0, len(history), step))
+    if history and picked[-1] != len(history) - 1:
+        picked.append(len(history) - 1)
+    return [list(history[i]) for i in picked]
 
 
 def _snapshot(sol: solve.Solution) -> solve.Solution:

@@ -300,39 +300,49 @@ def fingerprint(scene) -> dict[str, str]:
             "lights": digest(pl.position, pl.intensity, dl.direction, dl.irradiance)}
 
 
+#: The signals a store call holds until it is done: Ctrl-C, and SIGTERM, which the CLI turns
+#: into the same stop (:class:`daskrad.errors.Terminated`).
+HELD_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
 @contextlib.contextmanager
 def _uninterrupted():
-    """Hold Ctrl-C (SIGINT) until the block ends, then deliver it.
+    """Hold Ctrl-C (SIGINT) and SIGTERM until the block ends, then deliver them.
 
     Zarr writes from its own event-loop thread; a KeyboardInterrupt raised in the waiting main
     thread abandons the write task mid-way, and the interpreter then prints "Task was destroyed
     but it is pending!" and a traceback on exit (CI; 6 of 20 Ctrl-C'd runs under load, 0 of 20
-    since). A store call is short (milliseconds), so it finishes first and then the signal is
-    raised again for the handler that was there before (Python's KeyboardInterrupt, or the
-    caller's own). Off the main thread (signals reach the main thread only), inside an outer
-    block, with SIGINT ignored or with a handler not set from Python, nothing changes.
+    since). A store call is short (milliseconds), so it finishes first and then each signal
+    caught is raised again for the handler that was there before (Python's KeyboardInterrupt,
+    the CLI's SIGTERM handler, the default action, or the caller's own). Off the main thread
+    (signals reach the main thread only) or inside an outer block nothing changes, nor for a
+    signal that is ignored or has a handler not set from Python.
     """
-    previous = signal.getsignal(signal.SIGINT)
-    if (threading.current_thread() is not threading.main_thread() or previous is _hold
-            or previous is None or previous is signal.SIG_IGN):
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    _hold.caught = False
-    signal.signal(signal.SIGINT, _hold)
+    previous = {s: signal.getsignal(s) for s in HELD_SIGNALS}
+    held = [s for s, h in previous.items()
+            if h is not _hold and h is not None and h is not signal.SIG_IGN]
+    for s in held:
+        _hold.caught.discard(s)
+        signal.signal(s, _hold)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
-        if _hold.caught:              # deliver it now to whatever handled it before
-            _hold.caught = False
-            signal.raise_signal(signal.SIGINT)
+        for s in held:
+            signal.signal(s, previous[s])
+        for s in held:
+            if s in _hold.caught:     # deliver it now to whatever handled it before
+                _hold.caught.discard(s)
+                signal.raise_signal(s)
 
 
 def _hold(signum, frame) -> None:
-    _hold.caught = True
+    _hold.caught.add(signum)
 
 
-_hold.caught = False
+_hold.caught = set()
 
 
 def _whole(method):
