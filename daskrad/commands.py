@@ -169,7 +169,7 @@ def render_command(args) -> None:
     from daskrad.distributed.store import Result
     from daskrad.errors import OptionError
     from daskrad.io import write_exr, write_png
-    from daskrad.output import Outputs
+    from daskrad.output import Outputs, note, replaced_note
     from daskrad.progress import Heartbeat
     from daskrad.render import pixels
 
@@ -192,8 +192,11 @@ def render_command(args) -> None:
     finally:
         beat.close()
         ex.close()
+    replaced = [p for p in (outputs.exr, outputs.png) if p.exists()]
     write_exr(outputs.exr, image)
     write_png(outputs.png, image, stops=args.exposure or 0.0)
+    if replaced:
+        note(replaced_note(replaced))
     if not args.quiet:
         print(f"rendered {cam.width} x {cam.height} from {args.store} in "
               f"{time.perf_counter() - t:.1f} s")

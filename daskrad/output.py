@@ -322,6 +322,15 @@ def note(message: str) -> None:
     print(f"daskrad: {message}", file=sys.stderr)
 
 
+def replaced_note(paths: list[Path]) -> str:
+    """The note for earlier outputs ``paths`` (beside each other) that a command replaced:
+    their names and their folder as the user gave it, e.g. ``replaced the earlier results
+    c.exr, c.png in out`` (a new user could not tell which folder a bare name meant)."""
+    folder = paths[0].parent
+    where = "the current folder" if str(folder) == "." else str(folder)
+    return f"replaced the earlier results {', '.join(p.name for p in paths)} in {where}"
+
+
 def not_converged(sol: Solution, settings: Settings) -> str | None:
     """The warning for a solve stopped by ``max_iterations``, else ``None``."""
     if sol.converged:

@@ -132,7 +132,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
     beat.ended(f"done: {sol.iteration:,} shots, "
                + ("converged" if sol.converged else "not converged"))
     if replaced and not resume:
-        output.note(f"replaced the earlier results {', '.join(p.name for p in replaced)}")
+        output.note(output.replaced_note(replaced))
     return report
 
 

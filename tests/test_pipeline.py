@@ -187,7 +187,7 @@ def test_a_new_run_replaces_earlier_results_and_says_so(earlier, tmp_path):
                    "--patch-size", "150", "--element-size", "75", "--resolution", "64",
                    "--tolerance", "1e-2", "--spp", "1")
     assert proc.returncode == 0, proc.stderr
-    assert "replaced the earlier results c.exr, c.png, c.json, c.zarr" in proc.stderr
+    assert f"replaced the earlier results c.exr, c.png, c.json, c.zarr in {out}\n" in proc.stderr
     assert read_exr(out / "c.exr").shape == (16, 16, 3)
     # the new store was swapped in whole; nothing partial is left beside it
     assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []

@@ -285,6 +285,11 @@ def test_render_gives_the_runs_bits_and_leaves_the_store_as_it_was(straight, tmp
     np.testing.assert_array_equal(read_exr(tmp_path / "view.exr"), read_exr(straight))
     assert (tmp_path / "view.png").read_bytes() == straight.with_suffix(".png").read_bytes()
     assert tree(store) == before
+    assert "replaced" not in err
+    # the same view again replaces the image, and says so, naming the folder
+    code, out, err = daskrad(capsys, "render", store, "-o", tmp_path / "view.exr", "-q")
+    assert code == 0, err
+    assert err == f"daskrad: replaced the earlier results view.exr, view.png in {tmp_path}\n"
 
 
 def test_a_log_hears_a_render_every_heartbeat(straight, tmp_path, capsys, monkeypatch):
