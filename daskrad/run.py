@@ -84,12 +84,16 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
     try:
         store.open()           # a new store, or the checkpoint to resume from
         _announce(ex, settings)
-        beat.say(f"direct light at {len(mesh.hierarchy.vertices):,} vertices")
-        light = direct.light(scene, mesh, settings, ex)                           # 2
+        # a resume takes step 2 from the store when an earlier run of it wrote it
+        state = store.direct_state() if resume else None
+        beat.say(f"direct light at {len(mesh.hierarchy.vertices):,} vertices"
+                 if state is None else "direct light read back from the store")
+        light = direct.light(scene, mesh, settings, ex, state)                    # 2
         seconds["direct"], t = time.perf_counter() - t, time.perf_counter()
         mesh = light.mesh
         camera = render.camera(scene, settings)
-        begin = store.begin(mesh.hierarchy, mesh.reflectance, solve.start(light))
+        begin = store.begin(mesh.hierarchy, mesh.reflectance, solve.start(light),
+                            direct.state_of(light))
         began = True
         resumed_from = begin.iteration if resume else None    # the solve may update begin
         if resume and progress:         # before the bar, which draws its line at once

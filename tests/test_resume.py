@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -299,6 +300,32 @@ def test_more_iterations_continue_a_finished_run_to_the_straight_runs_bits(unint
     report = run(CORNELL, out, SETTINGS, progress=False, resume=True)
     assert report["iterations"] == SETTINGS.max_iterations
     np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
+
+
+def test_a_resume_reads_step_2_back_from_the_store_or_computes_it_when_it_is_not_there(
+        uninterrupted, tmp_path, monkeypatch):
+    # a continued run takes the direct pass and its subdivision from the store (they were
+    # most of a furnished room's resume): it computes no vertex's direct light and still ends
+    # with the straight run's bits; a store without them (an older daskrad's) has them
+    # computed again, to the same bits
+    from daskrad import direct
+
+    calls = []
+    compute = direct.compute_classes
+    monkeypatch.setattr(direct, "compute_classes",
+                        lambda *a, **k: calls.append(a[1:3]) or compute(*a, **k))
+    for name, kept in (("kept", True), ("gone", False)):
+        out = tmp_path / f"{name}.exr"
+        run(CORNELL, out, SETTINGS.replace(max_iterations=320), progress=False)
+        assert len(calls) > 1          # the vertices, then each level of subdivision
+        calls.clear()
+        if not kept:
+            shutil.rmtree(out.with_suffix(".zarr") / "internal" / "context" / "direct_state")
+        report = run(CORNELL, out, SETTINGS, progress=False, resume=True)
+        assert 0 < report["resumed_from"] <= 320     # the continue slot
+        assert bool(calls) != kept, name
+        calls.clear()
+        assert_same_run(uninterrupted, out)
 
 
 def _file_digests(root: Path) -> dict[str, str]:

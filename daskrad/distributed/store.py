@@ -17,6 +17,9 @@ Only the client writes; workers open it read-only, so every chunk has one writer
     internal/context/{shoot,direct,gather,render}/blob  what the worker tasks (and
                                                       ``daskrad render``/``export``) read,
                                                       each context's arrays in one blob
+    internal/context/direct_state/blob                step 2's result (refined hierarchy,
+                                                      vertex irradiance, light classes),
+                                                      which a resume reads back
 
 Root attributes: ``format``, ``daskrad`` (version), ``settings``, ``inputs`` (the fingerprint of
 what the solution depends on, :func:`fingerprint`), ``generation``, ``iteration``,
@@ -52,6 +55,7 @@ import numpy as np
 import zarr
 
 from daskrad import __version__
+from daskrad.direct import DirectState
 from daskrad.errors import StoreError
 from daskrad.io.report import plain
 from daskrad.mesh.types import Hierarchy
@@ -395,8 +399,10 @@ class Store:
                 "generation": -1, "iteration": 0, "converged": False, "history": []})
         return self
 
-    def begin(self, h: Hierarchy, reflectance: np.ndarray, sol: Solution) -> Solution:
-        """Write the hierarchy once per mesh generation; the solution to start from.
+    def begin(self, h: Hierarchy, reflectance: np.ndarray, sol: Solution,
+              direct: DirectState | None = None) -> Solution:
+        """Write the hierarchy once per mesh generation, and step 2's ``direct`` state (a
+        resume reads it back: :meth:`direct_state`); the solution to start from.
 
         That is ``sol`` for a new run, the checkpoint to continue from when resuming (``sol``
         again if the interrupted run died before its first checkpoint). A resume writes the
@@ -404,6 +410,8 @@ class Store:
         """
         if self.group is None:
             self.open()
+        if direct is not None:
+            self.put_context("direct_state", direct)    # nothing written when it is there
         if self._resolve(h) and not self.resume:
             self.group.update_attributes({"settings": _jsonable(self.settings.as_dict())})
         self.generation = int(h.generation)
@@ -423,6 +431,19 @@ class Store:
         elif self.group.attrs.get("generation") != h.generation:
             self.write_hierarchy(h, reflectance)
         return sol
+
+    @_whole
+    def direct_state(self) -> DirectState | None:
+        """Step 2's state as a run of this store wrote it (:meth:`begin`), for a resume to
+        take instead of its direct pass; None when there is none (a store of an older
+        daskrad, or a run stopped before its solve began). A resume has checked the store's
+        scene and settings against its own (:meth:`open`), so the state is the one its own
+        direct pass would compute."""
+        try:
+            state = load_context(self.path, "direct_state")
+        except Exception:  # noqa: BLE001 - missing or damaged: the direct pass runs again,
+            return None    # which gives the same bits
+        return state if isinstance(state, DirectState) else None
 
     def _resolve(self, h: Hierarchy) -> bool:
         """Resolve the default shot cap for ``h`` (:meth:`Settings.with_patches`); whether it
@@ -834,12 +855,13 @@ def _known_types() -> dict:
     from daskrad.formfactor.shooting import ShootContext
     from daskrad.kernels.faces import Faces
     from daskrad.kernels.grid import Grid
+    from daskrad.mesh.refine import TVertices
     from daskrad.render import GatherContext, Junctions, RenderContext
     from daskrad.scene.types import Camera
 
     return {f"{t.__module__}:{t.__qualname__}": t
             for t in (DirectContext, Lights, ShootContext, Grid, Faces, RenderContext,
-                      GatherContext, Junctions, Camera)}
+                      GatherContext, Junctions, Camera, DirectState, Hierarchy, TVertices)}
 
 
 def _encode(obj, prefix: str, arrays: dict):
