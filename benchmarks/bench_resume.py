@@ -17,7 +17,8 @@ Reported: medians of the whole continuation's wall seconds and of its steps (the
 ``python -m benchmarks.bench_resume [--scene PATH ...] [--shots N] [--more N] [--repeat N]
 [--workers N]``; the default scene is the Cornell box of ``scenes/``; the furnished rooms of
 ``../shared/scenes`` may be passed by path (never commit them). Writes
-``benchmarks/results/resume.json``.
+``benchmarks/results/resume.json`` (an entry per scene, by file name: a run replaces the
+entries of its scenes and keeps the others).
 """
 
 from __future__ import annotations
@@ -110,8 +111,14 @@ def main(argv: list[str] | None = None) -> list[dict]:
                              __name__ == "__main__" else [])
     results = [bench_scene(scene, args.shots, args.more, args.repeat, args.workers)
                for scene in (args.scene or [CORNELL])]
+    # the scenes measured now replace their earlier entries; the others are kept (a furnished
+    # room takes minutes, the Cornell box seconds: they are run apart)
+    path = RESULTS / "resume.json"
+    done = {r["scene"] for r in results}
+    kept = [r for r in (json.loads(path.read_text()) if path.exists() else [])
+            if Path(r["scene"]).name not in {Path(d).name for d in done}]
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "resume.json").write_text(json.dumps(results, indent=1))
+    path.write_text(json.dumps(kept + results, indent=1))
     return results
 
 

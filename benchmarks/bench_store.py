@@ -1,0 +1,109 @@
+"""What the client's store writes cost: every chunk written, against zarr's default.
+
+zarr skips a chunk that holds only the fill value, and decides it by comparing each chunk
+with a full array of the fill value before it writes it. The store writes every chunk
+instead (:data:`daskrad.distributed.store.WRITE_EMPTY_CHUNKS`). This benchmark makes one
+short run of a scene (default: the Cornell box at element size 7, ~73,000 elements), reads
+back every array its store holds (the public results, the checkpoint slots, the task
+contexts' blobs: what a run writes, with their own sizes, dtypes and compression), and
+writes them all again into a scratch store the way the store writes them, alternating the
+two arms ``--repeat`` times; medians of the seconds per kind of array.
+
+``python -m benchmarks.bench_store [--scene PATH] [--element-size S] [--repeat N]``; writes
+``benchmarks/results/store.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import zarr
+
+from daskrad.distributed import store as st
+from daskrad.run import run
+from daskrad.settings import Settings
+
+RESULTS = Path(__file__).parent / "results"
+CORNELL = Path(__file__).parent.parent / "scenes" / "cornell_box.obj"
+ARMS = {"every chunk": True, "zarr default": False}
+
+
+def _kind(name: str) -> str:
+    if name.startswith("internal/checkpoint"):
+        return "checkpoint slots"
+    if name.startswith("internal/context"):
+        return "context blobs"
+    return "public arrays"
+
+
+def arrays_of(path: Path) -> dict[str, tuple[np.ndarray, bool, tuple]]:
+    """Every array of the store at ``path``: ``{name: (data, compressed, chunks)}``."""
+    root = zarr.open_group(path, mode="r")
+    return {name: (arr[...], bool(arr.compressors), arr.chunks)
+            for name, arr in root.members(max_depth=None) if isinstance(arr, zarr.Array)}
+
+
+def write_all(arrays: dict, path: Path) -> dict[str, float]:
+    """Write ``arrays`` into a new store at ``path`` as the store writes them; seconds per
+    kind of array."""
+    group = zarr.open_group(path, mode="w")
+    seconds: dict[str, float] = {}
+    for name, (data, compressed, chunks) in arrays.items():
+        t = time.perf_counter()
+        st._put(group, name, data, compress=compressed, chunks=chunks)
+        seconds[_kind(name)] = seconds.get(_kind(name), 0.0) + time.perf_counter() - t
+    seconds["all"] = sum(seconds.values())
+    return seconds
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(prog="bench_store", description=__doc__.split("\n")[0])
+    parser.add_argument("--scene", type=Path, default=CORNELL)
+    parser.add_argument("--element-size", type=float, default=7.0)
+    parser.add_argument("--repeat", type=int, default=7)
+    args = parser.parse_args(argv if argv is not None else sys.argv[1:] if
+                             __name__ == "__main__" else [])
+    before = st.WRITE_EMPTY_CHUNKS
+    runs: dict[str, list[dict]] = {arm: [] for arm in ARMS}
+    with tempfile.TemporaryDirectory(prefix="daskrad-store-") as tmp:
+        out = Path(tmp) / "run.exr"
+        report = run(args.scene, out, Settings(workers=0, element_size=args.element_size,
+                                               max_iterations=64), progress=False)
+        arrays = arrays_of(out.with_suffix(".zarr"))
+        megabytes = sum(a[0].nbytes for a in arrays.values()) / 2**20
+        try:
+            for k in range(args.repeat + 1):              # the first pass warms up
+                for arm, every in ARMS.items():
+                    st.WRITE_EMPTY_CHUNKS = every
+                    seconds = write_all(arrays, Path(tmp) / f"{arm}{k}.zarr")
+                    if k:
+                        runs[arm].append(seconds)
+        finally:
+            st.WRITE_EMPTY_CHUNKS = before
+    columns = list(runs[next(iter(ARMS))][0])
+    rows = [{"arm": arm, **{c: statistics.median(r[c] for r in done) for c in columns},
+             "passes": done} for arm, done in runs.items()]
+    print(f"\n{args.scene.name}, {report['counts']['elements']:,} elements: its store's "
+          f"{len(arrays)} arrays ({megabytes:.1f} MiB) written again; seconds, medians of "
+          f"{args.repeat} alternated passes")
+    print(f"{'arm':<14}" + "".join(f"{c:>18}" for c in columns))
+    for r in rows:
+        print(f"{r['arm']:<14}" + "".join(f"{r[c]:>18.4f}" for c in columns))
+    print(f"{'ratio':<14}" + "".join(f"{rows[0][c] / rows[1][c]:>18.2f}" for c in columns))
+    result = {"scene": str(args.scene), "element_size": args.element_size,
+              "elements": report["counts"]["elements"], "arrays": len(arrays),
+              "mebibytes": megabytes, "repeat": args.repeat, "rows": rows}
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "store.json").write_text(json.dumps(result, indent=1))
+    return result
+
+
+if __name__ == "__main__":
+    main()
