@@ -57,7 +57,7 @@ def write_all(arrays: dict, path: Path) -> dict[str, float]:
     seconds: dict[str, float] = {}
     for name, (data, compressed, chunks) in arrays.items():
         t = time.perf_counter()
-        st._put(group, name, data, compress=compressed, chunks=chunks)
+        st.write_array(group, name, data, compress=compressed, chunks=chunks)
         seconds[_kind(name)] = seconds.get(_kind(name), 0.0) + time.perf_counter() - t
     seconds["all"] = sum(seconds.values())
     return seconds

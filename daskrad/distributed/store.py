@@ -158,16 +158,17 @@ def sha256(a: np.ndarray) -> str:
     return d.hexdigest()
 
 
-#: Whether a chunk holding only the fill value is written (:func:`_put`); False is zarr's
+#: Whether a chunk holding only the fill value is written (:func:`write_array`); False is zarr's
 #: default, kept as benchmarks/bench_store.py's other arm.
 WRITE_EMPTY_CHUNKS = True
 
 
-def _put(group, name: str, data: np.ndarray, dtype=None, compress: bool = True, *,
-         dims: tuple | None = None, units: str = "1", description: str = "",
-         chunks: tuple | None = None) -> None:
-    """Write ``data`` as array ``name`` of ``group`` (replacing it), ``dtype`` if given, with
-    its dimension names, units, description and the sha256 of what was written."""
+def write_array(group, name: str, data: np.ndarray, dtype=None, compress: bool = True, *,
+                dims: tuple | None = None, units: str = "1", description: str = "",
+                chunks: tuple | None = None) -> None:
+    """Write ``data`` as array ``name`` of the zarr ``group`` (replacing it), ``dtype`` if
+    given, with its dimension names, units, description and the sha256 of what was written:
+    every array of the store is written here (public, checkpoint slots, context blobs)."""
     data = np.ascontiguousarray(data, dtype=dtype)
     *parents, name = name.split("/")
     for parent in parents:
@@ -190,7 +191,7 @@ def _put(group, name: str, data: np.ndarray, dtype=None, compress: bool = True, 
 
 def _public(group, name: str, data: np.ndarray, dtype=None) -> None:
     dims, units, description = SCHEMA[name]
-    _put(group, name, data, dtype, dims=dims, units=units, description=description)
+    write_array(group, name, data, dtype, dims=dims, units=units, description=description)
 
 
 def read_checked(group, name: str, path: str) -> np.ndarray:
@@ -565,11 +566,11 @@ class Store:
                       (("radiosity", sol.radiosity), ("direct", sol.direct),
                        ("unshot", sol.unshot))}
             for name, a in arrays.items():
-                _put(s, name, a, compress=False, dims=_SLOT[name],
+                write_array(s, name, a, compress=False, dims=_SLOT[name],
                      units="W m-2", description=f"exact solver state: {name}")
             if sol.row_kind is not None:
                 arrays["row_kind"] = np.asarray(sol.row_kind, np.int8)
-                _put(s, "row_kind", arrays["row_kind"], compress=False,
+                write_array(s, "row_kind", arrays["row_kind"], compress=False,
                      dims=_SLOT_SINCE["row_kind"], description="the row each patch shoots "
                      "through: 1 penumbra-sampled, 0 one point, -1 not chosen yet")
             s.attrs.put(_sealed({**state, "sha256": {n: sha256(a) for n, a in arrays.items()}}))
@@ -784,7 +785,7 @@ class Store:
             parts.append(a.reshape(-1).view(np.uint8))
             offset += a.nbytes
         blob = np.concatenate(parts) if parts else np.zeros(0, np.uint8)
-        _put(g, "blob", blob, compress=False, dims=("byte",),
+        write_array(g, "blob", blob, compress=False, dims=("byte",),
              chunks=(max(1, min(len(blob), BLOB_CHUNK)),),
              description=f"task context {kind}: its arrays, packed (the group's layout)")
         g.attrs.put({"meta": meta, "digests": digests, "layout": layout, "token": token})
