@@ -449,7 +449,10 @@ def _restored(state: DirectState, h: Hierarchy, ctx: DirectContext) -> tuple | N
     r = state.hierarchy
     n = len(r.vertices)
     m = len(ctx.emitter_corners) if ctx.keep_classes else 0
-    if not (state.levels >= 0 and len(r.vertices) >= len(h.vertices)
+    # subdivision appends vertices and T-vertices, and none without a level
+    grown = n > len(h.vertices) if state.levels > 0 else (
+        n == len(h.vertices) and len(state.tvertices.vertex) == 0)
+    if not (state.version == STATE_VERSION and state.levels >= 0 and grown
             and np.array_equal(r.vertices[:len(h.vertices)], h.vertices)
             and state.irradiance.shape == (n, 3) and state.classes.shape == (n, m)):
         return None
@@ -597,6 +600,8 @@ class DirectState(NamedTuple):
         :attr:`DirectLight.classes` (``(V, 0)`` beyond :data:`CLASSES_MAX`).
     tvertices : TVertices
     levels : int
+    version : int
+        :data:`STATE_VERSION` of the daskrad that computed it.
     """
 
     hierarchy: Hierarchy
@@ -604,6 +609,14 @@ class DirectState(NamedTuple):
     classes: np.ndarray
     tvertices: TVertices
     levels: int
+    version: int = 0
+
+
+#: The version of step 2's answer: a change of the direct pass or of the subdivision that
+#: changes any bit of a :class:`DirectState` must increase it, so that a resume computes step 2
+#: again instead of taking an older daskrad's (the store's checks cover the inputs and the
+#: settings, not the code).
+STATE_VERSION = 1
 
 
 def state_of(light: DirectLight) -> DirectState | None:
@@ -611,7 +624,7 @@ def state_of(light: DirectLight) -> DirectState | None:
     if light.irradiance is None:
         return None
     return DirectState(light.mesh.hierarchy, light.irradiance, light.classes,
-                       light.tvertices, int(light.levels))
+                       light.tvertices, int(light.levels), STATE_VERSION)
 
 
 def light(scene: Scene, mesh: Mesh, settings: Settings, executor=None,

@@ -92,8 +92,9 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         seconds["direct"], t = time.perf_counter() - t, time.perf_counter()
         mesh = light.mesh
         camera = render.camera(scene, settings)
+        taken = state is not None and light.irradiance is state.irradiance
         begin = store.begin(mesh.hierarchy, mesh.reflectance, solve.start(light),
-                            direct.state_of(light))
+                            None if taken else direct.state_of(light))
         began = True
         resumed_from = begin.iteration if resume else None    # the solve may update begin
         if resume and progress:         # before the bar, which draws its line at once

@@ -49,13 +49,21 @@ def _root_attrs(store: Path) -> dict:
         return {}
 
 
+def _default_signals() -> None:
+    # SIGINT and SIGTERM at their defaults in the child (Python raises KeyboardInterrupt, and
+    # the CLI installs its SIGTERM handler, only then), even when the test runner was started
+    # with them ignored (a background job of a shell)
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def _start_and_stop_after_first_checkpoint(out: Path, sig: int) -> subprocess.CompletedProcess:
     # SIGINT at its default in the child (Python raises KeyboardInterrupt only then), even
     # when the test runner was started with it ignored (a background job of a shell)
     proc = subprocess.Popen([sys.executable, "-m", "daskrad", "run", str(CORNELL), "-o",
                              str(out), "--workers", "0", *ARGS],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                            preexec_fn=_default_signals)
     store = Outputs(out).partial         # a new run solves beside the earlier results
     end = time.monotonic() + 120
     while "checkpoint" not in _root_attrs(store):
@@ -108,29 +116,34 @@ def test_ctrl_c_or_sigterm_then_resume_from_the_command_line(uninterrupted, tmp_
     assert_same_run(uninterrupted, out)
 
 
-def test_ctrl_c_in_a_terminal_with_worker_processes_is_one_line(uninterrupted, tmp_path):
+@pytest.mark.parametrize("sig, code, word", [(signal.SIGINT, 130, "interrupted"),
+                                            (signal.SIGTERM, 143, "terminated")],
+                         ids=["ctrl-c", "sigterm"])
+def test_ctrl_c_in_a_terminal_with_worker_processes_is_one_line(uninterrupted, tmp_path, sig,
+                                                                code, word):
     # a terminal's Ctrl-C reaches every process of the group: the worker processes ignore it
-    # (no traceback of theirs) and the client says what is kept, once; then --resume on
-    # worker processes finishes to the same bits
+    # (no traceback of theirs) and the client says what is kept, once; a batch system's
+    # SIGTERM to the group (scancel, systemd) stops it the same way; then --resume on worker
+    # processes finishes to the same bits
     out = tmp_path / "group.exr"
     args = [sys.executable, "-m", "daskrad", "run", str(CORNELL), "-o", str(out),
             "--workers", "2", "--processes", "--dashboard", "127.0.0.1:0", *ARGS]
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                            preexec_fn=_default_signals)
     store = Outputs(out).partial
     end = time.monotonic() + 180
     while "checkpoint" not in _root_attrs(store):
         assert proc.poll() is None, proc.communicate()
         assert time.monotonic() < end, "no checkpoint appeared"
         time.sleep(0.02)
-    os.killpg(proc.pid, signal.SIGINT)
+    os.killpg(proc.pid, sig)
     _, stderr = proc.communicate(timeout=60)
-    assert proc.returncode == 130
+    assert proc.returncode == code, stderr
     lines = [line for line in stderr.splitlines() if not line.startswith("daskrad: dashboard")]
     # the line names the shot the kept checkpoint holds
     shot = _root_attrs(store)["iteration"]
-    assert lines == [f"daskrad: interrupted; the last checkpoint (shot {shot:,}) is kept "
+    assert lines == [f"daskrad: {word}; the last checkpoint (shot {shot:,}) is kept "
                      "(use --resume)"], stderr
     resumed = subprocess.run([*args, "--resume"], capture_output=True, text=True, timeout=240)
     assert resumed.returncode == 0, resumed.stderr
@@ -326,6 +339,31 @@ def test_a_resume_reads_step_2_back_from_the_store_or_computes_it_when_it_is_not
         assert bool(calls) != kept, name
         calls.clear()
         assert_same_run(uninterrupted, out)
+
+
+def test_a_direct_state_that_does_not_fit_the_mesh_or_this_daskrad_is_computed_again():
+    # a state of another mesh (other element sizes), or of a daskrad whose direct pass
+    # differs (another STATE_VERSION), is not taken: step 2 runs and gives its own answer
+    from daskrad import direct
+    from daskrad.preprocess import preprocess
+    from daskrad.scene import load_scene
+
+    scene = load_scene(CORNELL)
+    settings = Settings(element_size=60.0, patch_size=120.0)
+    mesh = preprocess(scene, settings)
+    own = direct.light(scene, mesh, settings)
+    assert own.levels > 0
+    coarse = Settings(element_size=90.0, patch_size=180.0)
+    other = direct.state_of(direct.light(scene, preprocess(scene, coarse), coarse))
+    older = direct.state_of(own)._replace(version=direct.STATE_VERSION - 1)
+    for state in (other, older):
+        light = direct.light(scene, mesh, settings, state=state)
+        assert light.irradiance is not state.irradiance
+        np.testing.assert_array_equal(light.irradiance, own.irradiance)
+        np.testing.assert_array_equal(light.mesh.hierarchy.vertices,
+                                      own.mesh.hierarchy.vertices)
+    taken = direct.light(scene, mesh, settings, state=direct.state_of(own))
+    assert taken.irradiance is own.irradiance
 
 
 def _file_digests(root: Path) -> dict[str, str]:
@@ -649,6 +687,41 @@ def test_ctrl_c_during_a_store_write_waits_for_it_to_finish(tmp_path, monkeypatc
     assert (attrs["checkpoint"], attrs["iteration"]) == (0, 8)
     assert store.load_checkpoint(h).iteration == 8
     assert not list((tmp_path / "s.zarr").rglob("*.partial"))
+
+
+def test_ctrl_c_and_sigterm_held_together_stop_as_a_termination_and_leave_no_hold(
+        tmp_path, monkeypatch):
+    # both signals during one store write: the checkpoint completes, SIGTERM is delivered
+    # first (the stop is a termination, exit 143 in the CLI), and both handlers are the
+    # caller's again afterwards (a handler left holding would swallow every later signal)
+    import os
+
+    h, store, sol = _store_at_iteration_8(tmp_path / "s.zarr")
+    replace = Path.replace
+    sent = []
+    before = {signal.SIGINT: signal.signal(signal.SIGINT, signal.default_int_handler),
+              signal.SIGTERM: signal.signal(signal.SIGTERM, _raise_terminated)}
+
+    def interrupting(self, target):
+        if not sent:
+            sent.append(True)
+            os.kill(os.getpid(), signal.SIGINT)
+            os.kill(os.getpid(), signal.SIGTERM)
+        return replace(self, target)
+
+    monkeypatch.setattr(Path, "replace", interrupting)
+    try:
+        with pytest.raises(Terminated):
+            store.checkpoint(sol)
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        assert signal.getsignal(signal.SIGTERM) is _raise_terminated
+        monkeypatch.setattr(Path, "replace", replace)
+        store.checkpoint(sol)               # nothing left pending from the first call
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler)
+    assert sent
+    assert store.load_checkpoint(h).iteration == 8
 
 
 def test_ctrl_c_held_by_a_store_call_goes_to_the_handler_that_was_there(tmp_path,

@@ -176,8 +176,8 @@ def write_array(group, name: str, data: np.ndarray, dtype=None, compress: bool =
     dims = tuple(dims) if dims is not None else tuple(f"{name}_{i}" for i in range(data.ndim))
     # every chunk is written, even one that holds only the fill value: zarr's default skips
     # those, and its test compares each chunk with a full array of the fill value first, which
-    # was most of an uncompressed write (73,066 × 3 float64: 11.8 → 4.7 ms; a 32 MiB blob
-    # 244 → ~60 ms); a missing chunk then always means a damaged store
+    # was most of an uncompressed write (benchmarks/bench_store.py: the 73k box's context
+    # blobs 0.38×, its checkpoint slots 0.83×)
     arr = group.create_array(name, shape=data.shape, dtype=data.dtype,
                              chunks=chunks or _chunks(data.shape), overwrite=True,
                              dimension_names=dims,
@@ -339,18 +339,36 @@ def _uninterrupted():
     previous = {s: signal.getsignal(s) for s in HELD_SIGNALS}
     held = [s for s, h in previous.items()
             if h is not _hold and h is not None and h is not signal.SIG_IGN]
-    for s in held:
-        _hold.caught.discard(s)
-        signal.signal(s, _hold)
+    _hold.caught.difference_update(held)
+    installed: list = []
     try:
+        # inside the try: a signal whose handler raises between two installs (SIGTERM's
+        # before it is held, SIGINT's already) still has the held ones put back
+        for s in held:
+            signal.signal(s, _hold)
+            installed.append(s)
         yield
     finally:
-        for s in held:
-            signal.signal(s, previous[s])
-        for s in held:
-            if s in _hold.caught:     # deliver it now to whatever handled it before
-                _hold.caught.discard(s)
-                signal.raise_signal(s)
+        _restore([(s, previous[s]) for s in installed])
+        # SIGTERM first: when both came, the stop is a termination (a raising handler ends
+        # the deliveries; the other signal asked for the same stop)
+        due = [s for s in sorted(installed, key=lambda s: s != signal.SIGTERM)
+               if s in _hold.caught]
+        _hold.caught.difference_update(installed)
+        for s in due:                 # deliver it now to whatever handled it before
+            signal.raise_signal(s)
+
+
+def _restore(handlers: list) -> None:
+    """Put back ``handlers`` (``[(signal, handler)]``), each even when a signal delivered
+    while an earlier one is put back raises (nested ``finally``: no handler is left as
+    :func:`_hold`, which would swallow every later signal)."""
+    if handlers:
+        (s, h), rest = handlers[0], handlers[1:]
+        try:
+            signal.signal(s, h)
+        finally:
+            _restore(rest)
 
 
 def _hold(signum, frame) -> None:
@@ -421,8 +439,6 @@ class Store:
         """
         if self.group is None:
             self.open()
-        if direct is not None:
-            self.put_context("direct_state", direct)    # nothing written when it is there
         if self._resolve(h) and not self.resume:
             self.group.update_attributes({"settings": _jsonable(self.settings.as_dict())})
         self.generation = int(h.generation)
@@ -437,10 +453,15 @@ class Store:
             self.group.update_attributes({"settings": _jsonable(self.settings.as_dict()),
                                           "complete": False})
             self.write_hierarchy(h, reflectance)
+            if direct is not None:
+                self.put_context("direct_state", direct)  # nothing written when it is there
             if restored is not None:
                 return restored
-        elif self.group.attrs.get("generation") != h.generation:
+            return sol
+        if self.group.attrs.get("generation") != h.generation:
             self.write_hierarchy(h, reflectance)
+        if direct is not None:
+            self.put_context("direct_state", direct)
         return sol
 
     @_whole
@@ -451,7 +472,11 @@ class Store:
         scene and settings against its own (:meth:`open`), so the state is the one its own
         direct pass would compute."""
         try:
-            state = load_context(self.path, "direct_state")
+            # the token covers the JSON (levels, generation) as the digests cover the arrays
+            a = zarr.open_group(self.path, mode="r")["internal/context/direct_state"].attrs
+            if _token(a["meta"], a["digests"]) != a["token"]:
+                return None
+            state = load_context(self.path, "direct_state", a["token"])
         except Exception:  # noqa: BLE001 - missing or damaged: the direct pass runs again,
             return None    # which gives the same bits
         return state if isinstance(state, DirectState) else None
@@ -768,8 +793,7 @@ class Store:
         arrays = {}
         meta = _encode(ctx, "", arrays)
         digests = {name: _digest(a) for name, a in sorted(arrays.items())}
-        token = hashlib.blake2b(json.dumps([meta, digests], sort_keys=True).encode(),
-                                digest_size=12).hexdigest()
+        token = _token(meta, digests)
         g = self.group.require_group("internal").require_group("context").require_group(kind)
         if g.attrs.get("token") == token:
             return token
@@ -815,6 +839,12 @@ def _fits(iteration: int, queued: list, settings: Settings) -> bool:
     flight)``, so a full batch after the queued ones still fits."""
     return (int(iteration) + sum(len(q) for q in queued) + settings.batch
             <= settings.max_iterations)
+
+
+def _token(meta, digests: dict) -> str:
+    """A task context's token: the digest of its JSON and of its arrays' digests."""
+    return hashlib.blake2b(json.dumps([meta, digests], sort_keys=True).encode(),
+                           digest_size=12).hexdigest()
 
 
 def _digest(a: np.ndarray) -> str:
