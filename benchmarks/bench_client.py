@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import sys
 import tempfile
 import time
@@ -34,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.arms import medians, print_table
 from daskrad import solve
 from daskrad.distributed import dask_executor, monitor
 from daskrad.io.image import read_exr
@@ -109,20 +109,11 @@ def main(argv: list[str] | None = None) -> dict:
                 if not np.array_equal(read_exr(out), reference):
                     raise AssertionError(f"{arm}: the image differs from the first run's")
     columns = ["monitor", "row offers", "applying shots", "solve", "total"]
-    rows = []
-    for arm, done in runs.items():
-        rows.append({"arm": arm, **{c: statistics.median(r.get(c, 0.0) for r in done)
-                                    for c in columns},
-                     "passes": done})
-    base = rows[1]
+    rows = medians(runs, columns)
     print(f"\n{args.scene.name}, {runs['in line'][0]['elements']:,} elements, "
           f"{runs['in line'][0]['shots']} shots, {args.workers} thread workers: client "
           f"seconds, medians of {args.repeat} alternated runs")
-    print(f"{'arm':<18}" + "".join(f"{c:>17}" for c in columns))
-    for r in rows:
-        print(f"{r['arm']:<18}" + "".join(f"{r[c]:>17.3f}" for c in columns))
-    print("ratio to in line  " + "".join(
-        f"{(rows[0][c] / base[c] if base[c] else float('nan')):>17.2f}" for c in columns))
+    print_table(rows, columns, "ratio to in line", label=18, width=17)
     result = {"scene": str(args.scene), "element_size": args.element_size,
               "workers": args.workers, "repeat": args.repeat, "rows": rows}
     RESULTS.mkdir(exist_ok=True)

@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
-import statistics
 import sys
 import tempfile
 import time
@@ -36,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.arms import medians, print_table
 from daskrad.io.image import read_exr
 from daskrad.output import Outputs
 from daskrad.run import run
@@ -86,18 +86,12 @@ def bench_scene(scene: Path, shots: int, more: int, repeat: int, workers: int) -
                 runs[arm].append(r)
                 shutil.rmtree(work)
     columns = ("total", *STEPS)
-    rows = [{"arm": arm, **{c: statistics.median(r[c] for r in done) for c in columns},
-             "passes": done} for arm, done in runs.items()]
+    rows = medians(runs, columns)
     one = runs[ARMS[0]][0]
     print(f"\n{scene.name}, {one['elements']:,} elements: {shots} shots continued to "
           f"{one['shots']} (from shot {one['resumed_from']}), workers {workers}; wall "
           f"seconds, medians of {repeat} alternated continuations")
-    print(f"{'arm':<12}" + "".join(f"{c:>12}" for c in columns))
-    for r in rows:
-        print(f"{r['arm']:<12}" + "".join(f"{r[c]:>12.3f}" for c in columns))
-    print(f"{'ratio':<12}" + "".join(
-        f"{(rows[0][c] / rows[1][c] if rows[1][c] else float('nan')):>12.2f}"
-        for c in columns))
+    print_table(rows, columns)
     return {"scene": str(scene), "shots": shots, "more": more, "workers": workers,
             "repeat": repeat, "rows": rows}
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import sys
 import tempfile
 import time
@@ -26,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import zarr
 
+from benchmarks.arms import medians, print_table
 from daskrad.distributed import store as st
 from daskrad.run import run
 from daskrad.settings import Settings
@@ -88,15 +88,11 @@ def main(argv: list[str] | None = None) -> dict:
         finally:
             st.WRITE_EMPTY_CHUNKS = before
     columns = list(runs[next(iter(ARMS))][0])
-    rows = [{"arm": arm, **{c: statistics.median(r[c] for r in done) for c in columns},
-             "passes": done} for arm, done in runs.items()]
+    rows = medians(runs, columns)
     print(f"\n{args.scene.name}, {report['counts']['elements']:,} elements: its store's "
           f"{len(arrays)} arrays ({megabytes:.1f} MiB) written again; seconds, medians of "
           f"{args.repeat} alternated passes")
-    print(f"{'arm':<14}" + "".join(f"{c:>18}" for c in columns))
-    for r in rows:
-        print(f"{r['arm']:<14}" + "".join(f"{r[c]:>18.4f}" for c in columns))
-    print(f"{'ratio':<14}" + "".join(f"{rows[0][c] / rows[1][c]:>18.2f}" for c in columns))
+    print_table(rows, columns, label=14, width=18, digits=4)
     result = {"scene": str(args.scene), "element_size": args.element_size,
               "elements": report["counts"]["elements"], "arrays": len(arrays),
               "mebibytes": megabytes, "repeat": args.repeat, "rows": rows}
