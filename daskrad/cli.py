@@ -351,13 +351,12 @@ def _command(args) -> int:
         return 2
     except (KeyboardInterrupt, SystemError) as err:
         # Ctrl-C or SIGTERM inside a numba kernel surfaces as a SystemError chained to it
-        stop = interrupted(err)
+        stop = interrupted(err)          # the KeyboardInterrupt itself, or the one chained
         if stop is None:
             raise
-        err = err if isinstance(err, KeyboardInterrupt) else stop
         # a run says what it leaves (commands.resume_hint); elsewhere nothing is claimed
-        why = getattr(err, "message", None) if not isinstance(err, Terminated) else None
-        terminated = isinstance(err, Terminated) or getattr(err, "terminated", False)
+        why = getattr(stop, "message", None)
+        terminated = isinstance(stop, Terminated) or getattr(stop, "terminated", False)
         word = "terminated" if terminated else "interrupted"
         sys.stderr.write(f"daskrad: {word}; {why}\n" if why else f"daskrad: {word}\n")
         return 143 if terminated else 130

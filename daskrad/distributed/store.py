@@ -442,6 +442,7 @@ class Store:
         if self._resolve(h) and not self.resume:
             self.group.update_attributes({"settings": _jsonable(self.settings.as_dict())})
         self.generation = int(h.generation)
+        restored = None
         if self.resume:
             n = self.group.attrs.get("n_elements")
             if n is not None and n != h.n_elements:
@@ -453,16 +454,11 @@ class Store:
             self.group.update_attributes({"settings": _jsonable(self.settings.as_dict()),
                                           "complete": False})
             self.write_hierarchy(h, reflectance)
-            if direct is not None:
-                self.put_context("direct_state", direct)  # nothing written when it is there
-            if restored is not None:
-                return restored
-            return sol
-        if self.group.attrs.get("generation") != h.generation:
+        elif self.group.attrs.get("generation") != h.generation:
             self.write_hierarchy(h, reflectance)
         if direct is not None:
-            self.put_context("direct_state", direct)
-        return sol
+            self.put_context("direct_state", direct)      # nothing written when it is there
+        return restored if restored is not None else sol
 
     @_whole
     def direct_state(self) -> DirectState | None:
