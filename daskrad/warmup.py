@@ -261,8 +261,21 @@ def compile_all() -> None:
         # the view region's primary rays run only beyond render.GATHER_ALL junction vertices
         from daskrad.kernels.grid import located_triangles, locator
 
-        located_triangles(lit.occluders.grid, locator(lit.grid.triangles), lit.grid,
+        loc = locator(lit.grid.triangles)
+        located_triangles(lit.occluders.grid, loc, lit.grid,
                           np.ones((1, 3)), -np.ones((1, 3)), 0.0, np.inf)
+        # the runs gathered by the tiny scene's method: every other method too (a scene of
+        # many polygons gathers by rays)
+        points = lit.hierarchy.vertices[:2]
+        for method in render.GATHER_METHODS:
+            render.gather_vertices(render.GatherContext(
+                grid=lit.grid, tri_verts=lit.tri_verts, tri_element=lit.tri_element,
+                elem_normal=lit.hierarchy.elem_normal,
+                exclude=np.zeros((lit.hierarchy.n_elements, 3)),
+                n_vertices=len(lit.hierarchy.vertices), points=points,
+                normals=np.tile([0.0, 0.0, 1.0], (len(points), 1)),
+                seeds=np.arange(len(points), dtype=np.int64), offset=1e-6, side=4,
+                polygons=lit.occluders.grid, locator=loc, method=method), 0, len(points))
 
 
 def warmup(verbose: bool = True) -> float:

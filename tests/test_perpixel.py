@@ -322,12 +322,14 @@ def test_shadow_rays_through_the_polygons_give_the_elements_image(monkeypatch):
 def test_the_views_rays_found_among_the_polygons_give_the_elements_image(monkeypatch):
     # the primary rays and the junction gather's find their hits among the scene's polygons
     # and locate them among the elements: the Cornell box (no coincident faces) gives the
-    # image of walking the elements, to round-off
+    # image of walking the elements, to round-off. Its few polygons would be gathered by the
+    # disc (render.gather_method), which no walk matches: by rays here
     from daskrad.run import solve_scene
     from daskrad.scene import load_scene
     from daskrad.settings import Settings
     from tests.helpers import CORNELL
 
+    monkeypatch.setattr(render, "DISC_POLYGONS", -1)
     scene = load_scene(CORNELL)
     settings = Settings(max_iterations=64, width=40, height=40)
     _, _, sol, light = solve_scene(scene, settings)

@@ -17,7 +17,22 @@ from numba import prange
 
 from daskrad.kernels._jit import jit, jit_parallel
 from daskrad.kernels.direct import hash01
-from daskrad.kernels.grid import aim_fan, any_hit_one, closest_hit_fan, closest_hit_located, new_fan
+from daskrad.kernels.geometry import element_planes, orthonormal_basis
+from daskrad.kernels.grid import (
+    aim_fan,
+    any_hit_one,
+    closest_hit_fan,
+    closest_hit_located,
+    locate_hit,
+    new_fan,
+)
+from daskrad.kernels.hemisphere import (
+    edge_capacity,
+    fill_polygon,
+    project_element,
+    project_scratch,
+    split_table,
+)
 from daskrad.kernels.pathtrace import tangent_frame
 
 
@@ -119,30 +134,178 @@ def gather_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_v
                                                       np.inf)
             else:
                 th, tri, bu, bv = closest_hit_fan(grid, fan, o, d, off, np.inf)
-            if tri < 0:
-                continue
-            e = tri_element[tri]
-            en = elem_normal[e]
-            if d[0] * en[0] + d[1] * en[1] + d[2] * en[2] >= 0.0:
-                continue
-            for c in range(3):
-                excluded[i, c] += elem_exclude[e, c]
-            for corner in range(3):
-                w = 1.0 - bu - bv if corner == 0 else (bu if corner == 1 else bv)
-                vtx = tri_verts[tri, corner]
-                if slot[vtx] < 0:
-                    slot[vtx] = nnz
-                    cols[nnz] = vtx
-                    weights[nnz] = w
-                    nnz += 1
+            nnz = _add_hit(i, tri, bu, bv, d, tri_verts, tri_element, elem_normal,
+                           elem_exclude, slot, cols, weights, excluded, nnz)
+        _end_row(i, row, nnz, ss, slot, cols, weights, excluded, indptr)
+    return indptr, cols[:nnz].copy(), weights[:nnz].copy(), excluded
+
+
+@jit
+def _add_hit(i, tri, bu, bv, d, tri_verts, tri_element, elem_normal, elem_exclude, slot,
+             cols, weights, excluded, nnz):
+    """Add the hit ``(tri, bu, bv)`` of a ray of direction ``d`` to row ``i`` (its
+    barycentric weights, summed per vertex in the order the vertices were first hit; ``slot``
+    where a vertex sits in the row, -1 if not yet); a miss (``tri < 0``) or a back face adds
+    nothing. Returns the new ``nnz``."""
+    if tri < 0:
+        return nnz
+    e = tri_element[tri]
+    en = elem_normal[e]
+    if d[0] * en[0] + d[1] * en[1] + d[2] * en[2] >= 0.0:
+        return nnz
+    for c in range(3):
+        excluded[i, c] += elem_exclude[e, c]
+    for corner in range(3):
+        w = 1.0 - bu - bv if corner == 0 else (bu if corner == 1 else bv)
+        vtx = tri_verts[tri, corner]
+        if slot[vtx] < 0:
+            slot[vtx] = nnz
+            cols[nnz] = vtx
+            weights[nnz] = w
+            nnz += 1
+        else:
+            weights[slot[vtx]] += w
+    return nnz
+
+
+@jit
+def _end_row(i, row, nnz, count, slot, cols, weights, excluded, indptr):
+    """Close row ``i`` (entries ``[row, nnz)``): each weight and the excluded emission over
+    the ``count`` rays of a point, ``slot`` cleared for the next row."""
+    for k in range(row, nnz):
+        slot[cols[k]] = -1
+        weights[k] /= count
+    for c in range(3):
+        excluded[i, c] /= count
+    indptr[i + 1] = nnz
+
+
+@jit
+def disc_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_vertices,
+                  points, normals, seeds, off, resolution, edge_angle, hz, polygons, loc):
+    """:func:`gather_operator` by the hemisphere base (Doi's item buffer, the form factors'
+    own method, :mod:`daskrad.kernels.hemisphere`) instead of rays: from each point the
+    scene's polygons (``polygons.triangles``) are projected onto the base disc of an
+    ``R × R`` item buffer, ``R = resolution``, with exact depth; every disc pixel is then a
+    cosine-distributed direction of weight ``1 / n_disc`` (Nusselt's analog), and the point
+    its polygon shows there is located among ``grid``'s triangles
+    (:func:`daskrad.kernels.grid.locate_hit`) as a ray's hit would be.
+
+    Faces turned away from the point are drawn too, after the front faces: they hide what
+    lies behind them and show nothing (a ray stops on a back face and sees no radiance),
+    and where a front and a back face coincide the front one wins its pixels. The buffer is
+    turned about the normal by a seeded angle per point (``seeds``), so neighbouring points
+    do not share the raster's aliasing. ``edge_angle`` (radians) splits the projected edges
+    (eq. 4); ``hz`` is the horizon clip's height (length): the point's own surface, ``off``
+    below it, is culled whole. Same returns as :func:`gather_operator`, every row over
+    ``n_disc`` directions. Its cost is ``polygons`` projections and ``n_disc`` locations a
+    point, against ``side²`` walks of the polygons' grid: the cheaper for a scene of few
+    polygons.
+    """
+    n = points.shape[0]
+    r = resolution + 1             # pixel centres cover [-1, 1]² whatever the shift
+    h = 2.0 / resolution            # the pixel's side
+    xc = np.empty(r)
+    yc = np.empty(r)
+    dz = np.empty(r * r)
+    ptris = polygons.triangles
+    P = ptris.shape[0]
+    pv = np.empty((3 * P, 3))
+    ev = np.full((P, 4), -1, np.int32)
+    for p in range(P):
+        for a in range(3):
+            ev[p, a] = 3 * p + a
+            for x in range(3):
+                pv[3 * p + a, x] = ptris[p, a, x]
+    front_n, front_off = element_planes(pv, ev)
+    back_n = -front_n
+    back_off = -front_off
+    cos_thr = math.cos(edge_angle)
+    tab = split_table(edge_angle)
+    cap = edge_capacity(edge_angle)
+    xs = np.empty(cap)
+    ys = np.empty(cap)
+    xcross = np.empty((r, cap))
+    cnt = np.zeros(r, np.int64)
+    item = np.empty(r * r, np.int32)
+    zbuf = np.empty(r * r)
+    lx = np.empty(3 * P)
+    ly = np.empty(3 * P)
+    lz = np.empty(3 * P)
+    cx, cy, cz, qx, qy, qz, qclip = project_scratch()
+    inv_h = 1.0 / h
+    cap_row = 3 * r * r
+    indptr = np.zeros(n + 1, np.int64)
+    cols = np.empty(n * cap_row, np.int64)
+    weights = np.empty(n * cap_row)
+    excluded = np.zeros((n, 3))
+    slot = np.full(n_vertices, -1, np.int64)
+    nnz = 0
+    o = np.empty(3)
+    d = np.empty(3)
+    for i in range(n):
+        nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
+        for x in range(3):
+            o[x] = points[i, x] + off * normals[i, x]
+        t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(nx, ny, nz)
+        phi = 2.0 * math.pi * hash01(seeds[i], 0)
+        ca = math.cos(phi)
+        sa = math.sin(phi)
+        ax, ay, az = ca * t1x + sa * t2x, ca * t1y + sa * t2y, ca * t1z + sa * t2z
+        bx, by, bz = ca * t2x - sa * t1x, ca * t2y - sa * t1y, ca * t2z - sa * t1z
+        for v in range(3 * P):
+            wx = pv[v, 0] - o[0]
+            wy = pv[v, 1] - o[1]
+            wz = pv[v, 2] - o[2]
+            lx[v] = ax * wx + ay * wy + az * wz
+            ly[v] = bx * wx + by * wy + bz * wz
+            lz[v] = nx * wx + ny * wy + nz * wz
+        # the pixel lattice shifted by a seeded fraction of a pixel: its centres are then
+        # uniform over the disc in expectation, and the rim is not the same staircase at
+        # every point (a fixed lattice gathered 0.3 % too little in the Cornell box)
+        sx = -1.0 - 0.5 * h + h * hash01(seeds[i], 1)
+        sy = -1.0 - 0.5 * h + h * hash01(seeds[i], 2)
+        for j in range(r):
+            xc[j] = sx + (j + 0.5) * h
+            yc[j] = sy + (j + 0.5) * h
+        n_disc = 0
+        for j in range(r):
+            for k in range(r):
+                q = 1.0 - xc[k] * xc[k] - yc[j] * yc[j]
+                item[j * r + k] = -1
+                zbuf[j * r + k] = -np.inf
+                if q > 0.0:
+                    dz[j * r + k] = math.sqrt(q)
+                    n_disc += 1
                 else:
-                    weights[slot[vtx]] += w
-        for k in range(row, nnz):
-            slot[cols[k]] = -1
-            weights[k] /= ss
-        for c in range(3):
-            excluded[i, c] /= ss
-        indptr[i + 1] = nnz
+                    dz[j * r + k] = -1.0
+        for back in range(2):
+            pn = back_n if back else front_n
+            po = back_off if back else front_off
+            for p in range(P):
+                m, mm, c = project_element(p, o[0], o[1], o[2], ev, pn, po, lx, ly, lz, hz,
+                                           cos_thr, tab, cx, cy, cz, qx, qy, qz, qclip, xs, ys)
+                if mm == 0:
+                    continue
+                nlx = ax * pn[p, 0] + ay * pn[p, 1] + az * pn[p, 2]
+                nly = bx * pn[p, 0] + by * pn[p, 1] + bz * pn[p, 2]
+                nlz = nx * pn[p, 0] + ny * pn[p, 1] + nz * pn[p, 2]
+                fill_polygon(xs, ys, mm, p + back * P, xc, yc, r, r, sx, inv_h, sy, inv_h, dz,
+                             nlx / c, nly / c, 0.0, nlz / c, xcross, cnt, item, zbuf)
+        row = nnz
+        for k in range(r * r):
+            if item[k] < 0 or item[k] >= P:
+                continue
+            x = xc[k % r]
+            y = yc[k // r]
+            z = dz[k]
+            d[0] = x * ax + y * bx + z * nx
+            d[1] = x * ay + y * by + z * ny
+            d[2] = x * az + y * bz + z * nz
+            _, tri, bu, bv = locate_hit(grid, loc, o, d, 1.0 / zbuf[k], off, np.inf)
+            nnz = _add_hit(i, tri, bu, bv, d, tri_verts, tri_element, elem_normal,
+                           elem_exclude, slot, cols, weights, excluded, nnz)
+        _end_row(i, row, nnz, n_disc, slot, cols, weights, excluded, indptr)
     return indptr, cols[:nnz].copy(), weights[:nnz].copy(), excluded
 
 

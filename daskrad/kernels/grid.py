@@ -661,6 +661,16 @@ def closest_hit_located(polygons, fan, grid, loc, o, d, tmin, tmax):
                            fan)
     if ptri < 0:
         return np.inf, -1, 0.0, 0.0
+    return locate_hit(grid, loc, o, d, tp, tmin, tmax)
+
+
+@jit
+def locate_hit(grid, loc, o, d, tp, tmin, tmax):
+    """The triangle of ``grid`` that holds the point ``o + tp d`` a ray found on a polygon
+    (:func:`closest_hit_located`'s second half, also for hits found by an item buffer over
+    the polygons): ``(tp, tri, u, v)``, the triangle facing the ray where two coincide, or
+    the walk of ``grid`` from ``o`` along ``d`` over ``(tmin, tmax)`` when no triangle holds
+    the point within the tolerances."""
     px = o[0] + tp * d[0]
     py = o[1] + tp * d[1]
     pz = o[2] + tp * d[2]

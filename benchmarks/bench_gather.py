@@ -1,0 +1,200 @@
+"""The junction gather by the hemisphere base against rays (issue 12, item 3).
+
+:data:`daskrad.render.GATHER_METHODS`: ``"rays"`` casts ``GATHER_SIDE²`` stratified, jittered,
+cosine-distributed rays from each junction vertex, each walking the polygons' grid;
+``"disc"`` projects every polygon onto the base of the vertex's hemisphere (Doi's item
+buffer, ``DISC_SIDE × DISC_SIDE``), each disc pixel a cosine-distributed direction. Both give
+the same operator (:class:`daskrad.render.GatherOperator`), so both are measured on the same
+junction vertices, in one run:
+
+- **rows**: the operator of every junction vertex of the view (:func:`daskrad.render.
+  for_view`'s own choice of vertices, caught through the executor's ``gather`` call), one
+  thread, both methods alternated ``--repeat`` times (medians), and the per-vertex error of the
+  gathered radiance ``G · L − x`` (``L`` the solution's vertex radiance) against a disc of
+  side :data:`REFERENCE_SIDE` (two turns and shifts averaged): relative RMS over the vertices
+  and the mean's relative bias;
+- **image** (the bundled scenes): the whole render (:func:`daskrad.render.image`, a thread per
+  core) with each method, seconds (medians) and, for the Cornell box, the relative RMS against
+  the cached path-traced reference of :mod:`benchmarks.bench_reference` (2,048 paths per
+  pixel, 128 × 128, off the light as well).
+
+Scenes: the bundled Cornell box and lit room, and ``--scene PATH`` (e.g. RenderPark's MGF
+scenes converted to OBJ, which are not in the repository: docs/references.md; ``--shots``
+caps their solves). A scene of more than :data:`daskrad.render.DISC_POLYGONS` polygon
+triangles gathers by rays in a run, but both are measured here.
+
+``python -m benchmarks.bench_gather [--scene PATH ...] [--shots N] [--repeat N]``; writes
+``benchmarks/results/gather.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.bench_reference import SIZE as REFERENCE_SIZE
+from benchmarks.bench_reference import errors, reference
+from daskrad import direct, render, solve
+from daskrad.distributed.executor import InProcess
+from daskrad.preprocess import preprocess
+from daskrad.scene import load_scene
+from daskrad.settings import Settings
+
+RESULTS = Path(__file__).parent / "results"
+SCENES = Path(__file__).parent.parent / "scenes"
+#: The disc side of the error's reference: ~7,850 directions a vertex.
+REFERENCE_SIDE = 100
+#: Added to the vertex seeds for the reference's second turn and shift.
+SEED_SHIFT = 1_000_003
+
+
+class _Catch(InProcess):
+    """The default executor, keeping the last gather context it was asked to run."""
+
+    gctx = None
+
+    def gather(self, ctx, ranges):
+        self.gctx = ctx
+        return super().gather(ctx, ranges)
+
+
+def _arm(gctx: render.GatherContext, method: str, side: int | None = None,
+         shift: int = 0) -> render.GatherContext:
+    side = side or (render.DISC_SIDE if method == "disc" else render.GATHER_SIDE)
+    return dataclasses.replace(gctx, method=method, side=side, seeds=gctx.seeds + shift)
+
+
+def _gathered(gctx: render.GatherContext, L: np.ndarray) -> tuple[np.ndarray, float]:
+    """``(G · L − x, seconds)`` over every vertex of ``gctx``, in this thread."""
+    t = time.perf_counter()
+    op = render.gather_vertices(gctx, 0, len(gctx.points))
+    return op.mean_radiance(L) - op.excluded, time.perf_counter() - t
+
+
+def _solved(path: Path, settings: Settings):
+    scene = load_scene(path)
+    ex = InProcess()
+    light = direct.light(scene, preprocess(scene, settings), settings, ex)
+    return scene, light, solve.radiosity(light, settings, ex)
+
+
+def rows(path: Path, shots: int | None, repeat: int) -> dict:
+    settings = Settings(workers=0)
+    if shots is not None:
+        settings = settings.replace(max_iterations=shots)
+    scene, light, sol = _solved(path, settings)
+    ctx = render.context(scene, light, sol, settings, render.camera(scene, settings))
+    ex = _Catch()
+    render.for_view(ctx, ex)
+    gctx = ex.gctx
+    ex.close()
+    if gctx is None:
+        return {"scene": path.name, "junction_vertices": 0}
+    L = ctx.vertex_radiance
+    ref = 0.5 * (_gathered(_arm(gctx, "disc", REFERENCE_SIDE), L)[0]
+                 + _gathered(_arm(gctx, "disc", REFERENCE_SIDE, SEED_SHIFT), L)[0])
+    scale = float(np.abs(ref).mean())
+    out = {"scene": path.name, "junction_vertices": int(len(gctx.points)),
+           "polygon_triangles": int(len(gctx.polygons.triangles)),
+           "run_method": render.gather_method(gctx.polygons)}
+    for method in render.GATHER_METHODS:
+        _gathered(_arm(gctx, method, shift=0), L)         # compiled (or loaded) first
+    seconds: dict[str, list[float]] = {m: [] for m in render.GATHER_METHODS}
+    values = {}
+    for k in range(repeat):
+        for method in (list(seconds) if k % 2 == 0 else list(seconds)[::-1]):
+            values[method], s = _gathered(_arm(gctx, method), L)
+            seconds[method].append(s)
+    for method, got in values.items():
+        out[method] = {"seconds": statistics.median(seconds[method]),
+                       "us_per_vertex": 1e6 * statistics.median(seconds[method])
+                       / len(gctx.points),
+                       "relative_rms": float(np.sqrt(np.mean((got - ref) ** 2)) / scale),
+                       "bias": float(np.mean(got - ref) / scale)}
+    out["speedup"] = out["rays"]["seconds"] / out["disc"]["seconds"]
+    return out
+
+
+def image(path: Path, repeat: int) -> dict:
+    """The render with each method: seconds (a thread per core) and, for the Cornell box, the
+    error against the path-traced reference."""
+    settings = Settings(workers=0, width=REFERENCE_SIZE, height=REFERENCE_SIZE)
+    scene, light, sol = _solved(path, settings)
+    ref = reference()[0] if path.name == "cornell_box.obj" else None
+    keep = render.DISC_POLYGONS
+    ex = InProcess()
+    seconds: dict[str, list[float]] = {"rays": [], "disc": []}
+    pictures = {}
+    try:
+        for k in range(repeat + 1):
+            for method in (("rays", "disc") if k % 2 == 0 else ("disc", "rays")):
+                render.DISC_POLYGONS = keep if method == "disc" else -1
+                t = time.perf_counter()
+                pictures[method] = render.image(scene, light, sol, settings, ex).pixels
+                if k:                                  # the first pass compiles
+                    seconds[method].append(time.perf_counter() - t)
+    finally:
+        render.DISC_POLYGONS = keep
+        ex.close()
+    out = {"scene": path.name, "size": REFERENCE_SIZE, "threads": ex.threads}
+    for method, px in pictures.items():
+        out[method] = {"render_s": statistics.median(seconds[method])}
+        if ref is not None:
+            out[method].update(errors(px, ref))
+    return out
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_gather")
+    parser.add_argument("--scene", type=Path, action="append", default=[])
+    parser.add_argument("--shots", type=int, default=None,
+                        help="cap the solves of --scene scenes (default: the run's own)")
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args([] if argv is None else argv)
+    bundled = [SCENES / "cornell_box.obj", SCENES / "lit_room.obj"]
+    table = [rows(p, None, args.repeat) for p in bundled]
+    table += [rows(p, args.shots, args.repeat) for p in args.scene]
+    images = [image(p, args.repeat) for p in bundled]
+
+    print("junction gather, one thread: seconds (medians of "
+          f"{args.repeat}) and per-vertex error against a disc of side {REFERENCE_SIDE}")
+    print(f"{'scene':<16}{'vertices':>9}{'polygons':>9}  {'rays s':>8}{'µs/v':>7}{'rms':>8}"
+          f"{'bias':>9}  {'disc s':>8}{'µs/v':>7}{'rms':>8}{'bias':>9}{'x':>7}  run")
+    for r in table:
+        if not r["junction_vertices"]:
+            print(f"{r['scene']:<16}{0:>9}")
+            continue
+        a, b = r["rays"], r["disc"]
+        print(f"{r['scene']:<16}{r['junction_vertices']:>9,}{r['polygon_triangles']:>9,}  "
+              f"{a['seconds']:>8.3f}{a['us_per_vertex']:>7.0f}{a['relative_rms']:>8.2%}"
+              f"{a['bias']:>+9.2%}  {b['seconds']:>8.3f}{b['us_per_vertex']:>7.0f}"
+              f"{b['relative_rms']:>8.2%}{b['bias']:>+9.2%}{r['speedup']:>7.2f}  "
+              f"{r['run_method']}")
+    print(f"\nrender {REFERENCE_SIZE}x{REFERENCE_SIZE}, {images[0]['threads']} threads: seconds "
+          f"(medians of {args.repeat}); Cornell box error against the path tracer")
+    for r in images:
+        line = f"{r['scene']:<16}"
+        for method in ("rays", "disc"):
+            m = r[method]
+            line += f"  {method} {m['render_s']:.3f} s"
+            if "relative_rms" in m:
+                line += (f" (rel RMS {m['relative_rms']:.5f}, off the light "
+                         f"{m['relative_rms_off_light']:.5f})")
+        print(line)
+    result = {"repeat": args.repeat, "reference_side": REFERENCE_SIDE,
+              "disc_side": render.DISC_SIDE, "gather_side": render.GATHER_SIDE,
+              "rows": table, "images": images}
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "gather.json").write_text(json.dumps(result, indent=2))
+    return result
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
