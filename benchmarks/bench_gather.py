@@ -10,9 +10,10 @@ junction vertices, in one run:
 - **rows**: the operator of every junction vertex of the view (:func:`daskrad.render.
   for_view`'s own choice of vertices, caught through the executor's ``gather`` call), one
   thread, both methods alternated ``--repeat`` times (medians), and the per-vertex error of the
-  gathered radiance ``G · L − x`` (``L`` the solution's vertex radiance) against a disc of
-  side :data:`REFERENCE_SIDE` (two turns and shifts averaged): relative RMS over the vertices
-  and the mean's relative bias;
+  gathered radiance ``G · L − x`` (``L`` the solution's vertex radiance) against a reference
+  that favours neither: the mean of a disc of side :data:`REFERENCE_SIDE` (two turns and
+  shifts averaged) and :data:`REFERENCE_RAYS`² rays (other seeds than the arm's): relative RMS
+  over the vertices and the mean's relative bias, and the two references' own gap;
 - **image** (the bundled scenes): the whole render (:func:`daskrad.render.image`, a thread per
   core) with each method, seconds (medians) and, for the Cornell box, the relative RMS against
   the cached path-traced reference of :mod:`benchmarks.bench_reference` (2,048 paths per
@@ -51,6 +52,8 @@ RESULTS = Path(__file__).parent / "results"
 SCENES = Path(__file__).parent.parent / "scenes"
 #: The disc side of the error's reference: ~7,850 directions a vertex.
 REFERENCE_SIDE = 100
+#: The rays per side of the error's other reference: 4,096 a vertex.
+REFERENCE_RAYS = 64
 #: Added to the vertex seeds for the reference's second turn and shift.
 SEED_SHIFT = 1_000_003
 
@@ -98,12 +101,17 @@ def rows(path: Path, shots: int | None, repeat: int) -> dict:
     if gctx is None:
         return {"scene": path.name, "junction_vertices": 0}
     L = ctx.vertex_radiance
-    ref = 0.5 * (_gathered(_arm(gctx, "disc", REFERENCE_SIDE), L)[0]
-                 + _gathered(_arm(gctx, "disc", REFERENCE_SIDE, SEED_SHIFT), L)[0])
+    disc = 0.5 * (_gathered(_arm(gctx, "disc", REFERENCE_SIDE), L)[0]
+                  + _gathered(_arm(gctx, "disc", REFERENCE_SIDE, SEED_SHIFT), L)[0])
+    rays = _gathered(_arm(gctx, "rays", REFERENCE_RAYS, SEED_SHIFT), L)[0]
+    ref = 0.5 * (disc + rays)
     scale = float(np.abs(ref).mean())
     out = {"scene": path.name, "junction_vertices": int(len(gctx.points)),
            "polygon_triangles": int(len(gctx.polygons.triangles)),
-           "run_method": render.gather_method(gctx.polygons)}
+           "run_method": render.gather_method(gctx.polygons),
+           "reference_gap": {"relative_rms": float(np.sqrt(np.mean((disc - rays) ** 2))
+                                                   / scale),
+                             "bias": float(np.mean(disc - rays) / scale)}}
     for method in render.GATHER_METHODS:
         _gathered(_arm(gctx, method, shift=0), L)         # compiled (or loaded) first
     seconds: dict[str, list[float]] = {m: [] for m in render.GATHER_METHODS}
@@ -164,9 +172,11 @@ def main(argv: list[str] | None = None) -> dict:
     images = [image(p, args.repeat) for p in bundled]
 
     print("junction gather, one thread: seconds (medians of "
-          f"{args.repeat}) and per-vertex error against a disc of side {REFERENCE_SIDE}")
+          f"{args.repeat}) and per-vertex error against the mean of a disc of side "
+          f"{REFERENCE_SIDE} and {REFERENCE_RAYS}² rays (gap: disc − rays references)")
     print(f"{'scene':<16}{'vertices':>9}{'polygons':>9}  {'rays s':>8}{'µs/v':>7}{'rms':>8}"
-          f"{'bias':>9}  {'disc s':>8}{'µs/v':>7}{'rms':>8}{'bias':>9}{'x':>7}  run")
+          f"{'bias':>9}  {'disc s':>8}{'µs/v':>7}{'rms':>8}{'bias':>9}{'x':>7}"
+          f"{'gap rms':>9}{'bias':>8}  run")
     for r in table:
         if not r["junction_vertices"]:
             print(f"{r['scene']:<16}{0:>9}")
@@ -175,8 +185,9 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"{r['scene']:<16}{r['junction_vertices']:>9,}{r['polygon_triangles']:>9,}  "
               f"{a['seconds']:>8.3f}{a['us_per_vertex']:>7.0f}{a['relative_rms']:>8.2%}"
               f"{a['bias']:>+9.2%}  {b['seconds']:>8.3f}{b['us_per_vertex']:>7.0f}"
-              f"{b['relative_rms']:>8.2%}{b['bias']:>+9.2%}{r['speedup']:>7.2f}  "
-              f"{r['run_method']}")
+              f"{b['relative_rms']:>8.2%}{b['bias']:>+9.2%}{r['speedup']:>7.2f}"
+              f"{r['reference_gap']['relative_rms']:>9.2%}{r['reference_gap']['bias']:>+8.2%}"
+              f"  {r['run_method']}")
     print(f"\nrender {REFERENCE_SIZE}x{REFERENCE_SIZE}, {images[0]['threads']} threads: seconds "
           f"(medians of {args.repeat}); Cornell box error against the path tracer")
     for r in images:
@@ -189,6 +200,7 @@ def main(argv: list[str] | None = None) -> dict:
                          f"{m['relative_rms_off_light']:.5f})")
         print(line)
     result = {"repeat": args.repeat, "reference_side": REFERENCE_SIDE,
+              "reference_rays": REFERENCE_RAYS,
               "disc_side": render.DISC_SIDE, "gather_side": render.GATHER_SIDE,
               "rows": table, "images": images}
     RESULTS.mkdir(exist_ok=True)

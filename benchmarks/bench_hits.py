@@ -45,9 +45,12 @@ SCENES = Path(__file__).parent.parent / "scenes"
 def _arm(ctx: render.RenderContext, located: bool, ex) -> tuple[float, float, np.ndarray,
                                                                   np.ndarray]:
     """``(gather seconds, tiles seconds, vertex radiance, image)`` of ``ctx`` with
-    :data:`daskrad.render.POLYGON_HITS` set to ``located`` (restored after)."""
-    keep = render.POLYGON_HITS
+    :data:`daskrad.render.POLYGON_HITS` set to ``located`` (restored after), the junction
+    gather by rays in both arms (:data:`daskrad.render.DISC_POLYGONS` −1: the disc's
+    directions have no walk of the elements to compare with)."""
+    keep, few = render.POLYGON_HITS, render.DISC_POLYGONS
     render.POLYGON_HITS = located
+    render.DISC_POLYGONS = -1        # both arms gather by rays (the walk has no disc)
     try:
         t = time.perf_counter()
         view = render.for_view(ctx, ex)
@@ -56,7 +59,7 @@ def _arm(ctx: render.RenderContext, located: bool, ex) -> tuple[float, float, np
         image = render.pixels(view, ex)
         return gather, time.perf_counter() - t, view.vertex_radiance, image
     finally:
-        render.POLYGON_HITS = keep
+        render.POLYGON_HITS, render.DISC_POLYGONS = keep, few
 
 
 def _change(a: np.ndarray, b: np.ndarray, axis: int) -> dict:

@@ -95,19 +95,23 @@ def _gather_hits(grid, points, normals, seeds, off, side, fanned):
 
 def _gather_context(ctx: render.RenderContext) -> render.GatherContext:
     """The junction gather's rays of ``ctx`` (every gathered vertex), as the render casts
-    them."""
+    them when it gathers by rays (a scene of few polygons gathers by the disc,
+    :func:`daskrad.render.gather_method`: by rays here, whose walks this benchmark times)."""
     seen = {}
     original = render.gather_vertices
+    few = render.DISC_POLYGONS
 
     def capture(gctx, start, stop):
         seen["gctx"] = gctx
         return original(gctx, start, stop)
 
     render.gather_vertices = capture
+    render.DISC_POLYGONS = -1
     try:
         render.for_view(ctx)
     finally:
         render.gather_vertices = original
+        render.DISC_POLYGONS = few
     return seen["gctx"]
 
 

@@ -1111,7 +1111,7 @@ DISC_SIDE = 27
 #: The disc gathers for scenes of at most this many polygon triangles, the rays above: a
 #: vertex costs the disc ~140 µs plus ~0.6 µs a triangle it projects, the rays ~450–650 µs
 #: whatever the scene (the polygons' grid): equal near 800 (``bench_gather``: office2's 741
-#: triangles 604 against 644 µs a vertex, at 4.1 % against 5.2 % error).
+#: triangles 601 against 667 µs a vertex, at 4.2 % against 5.2 % error).
 DISC_POLYGONS = 800
 #: The projected edges of the disc's polygons are split so that each piece lies within
 #: this fraction of a pixel of its arc (eq. 4): at the item buffers' quarter pixel
@@ -1126,6 +1126,8 @@ def gather_method(polygons: Grid | None) -> str:
     if polygons is not None and len(polygons.triangles) <= DISC_POLYGONS:
         return "disc"
     return "rays"
+
+
 #: Correction passes after the first gather: each gathers the change the previous pass made
 #: along the first pass's rays (the gather is linear in the radiance seen, so the rays are cast
 #: once: :class:`GatherOperator`), so the two sides of a junction see each other's gathered
@@ -1162,8 +1164,8 @@ def gather_batch(n: int, executor=None) -> int:
 #: whether more than :data:`GATHER_ALL` were found.
 NEAR_PIECE = 16_384
 
-#: Junction vertices per ``gather-…`` task at least (~0.05–0.1 s each: 576 rays a vertex;
-#: :func:`gather_batch`).
+#: Junction vertices per ``gather-…`` task at least (~0.02–0.1 s each: ~576 directions a
+#: vertex; :func:`gather_batch`).
 GATHER_BATCH = 128
 
 
@@ -1288,13 +1290,13 @@ def _rays_rows(gctx: GatherContext, start: int, stop: int) -> GatherOperator:
 #:   Doi's item buffer of the form factors, ``DISC_SIDE × DISC_SIDE`` pixels over the disc,
 #:   each disc pixel a cosine-distributed direction (Nusselt's analog;
 #:   :func:`daskrad.kernels.gather.disc_operator`). One projection of every polygon a vertex
-#:   instead of a walk a ray: the cheaper up to ~1,000 triangles (:data:`DISC_POLYGONS`).
+#:   instead of a walk a ray: the cheaper up to ~800 triangles (:data:`DISC_POLYGONS`).
 #:
-#: Measured (``bench_gather``: per-vertex error of the gathered radiance against a disc of
-#: side 100, one thread): the Cornell box's 2,663 junction vertices, rays 2.11 % RMS in
-#: 1.26 s, disc 1.30 % in 0.45 s; the lit room 1.25 / 0.85 %, 3.6× faster; the MGF cube 1.72
-#: / 1.02 %, 524 / 224 µs a vertex. The Cornell box's render at 128² took 0.90 → 0.45 s with
-#: the same error against the path tracer (relative RMS 0.01797 both).
+#: Measured (``bench_gather``: per-vertex error of the gathered radiance against the mean of a
+#: disc of side 100 and 64² rays, one thread): the Cornell box's 2,663 junction vertices, rays
+#: 2.13 % RMS in 1.32 s, disc 1.30 % in 0.54 s; the lit room 1.26 / 0.85 %, 3.4× faster; the
+#: MGF cube 1.73 / 1.02 %, 512 / 226 µs a vertex. The Cornell box's render at 128² took 0.88
+#: → 0.47 s with the same error against the path tracer (relative RMS 0.01797 both).
 GATHER_METHODS = {"rays": _rays_rows, "disc": _disc_rows}
 
 

@@ -23,6 +23,7 @@ from daskrad.kernels.grid import (
     any_hit_one,
     closest_hit_fan,
     closest_hit_located,
+    closest_hit_one,
     locate_hit,
     new_fan,
 )
@@ -192,10 +193,13 @@ def disc_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_ver
     (:func:`daskrad.kernels.grid.locate_hit`) as a ray's hit would be.
 
     Faces turned away from the point are drawn too, after the front faces: they hide what
-    lies behind them and show nothing (a ray stops on a back face and sees no radiance),
-    and where a front and a back face coincide the front one wins its pixels. The buffer is
-    turned about the normal by a seeded angle per point (``seeds``), so neighbouring points
-    do not share the raster's aliasing. ``edge_angle`` (radians) splits the projected edges
+    lies behind them and show nothing (a ray stops on a back face and sees no radiance).
+    Where two one-sided faces coincide back to back, round-off may give the pixel to
+    either; its point is located among the elements like any other, and the location takes
+    the element facing the point, as it does for a ray. The pixel lattice is turned about
+    the normal and shifted by a fraction of a pixel, both seeded per point (``seeds``), so
+    that its centres are uniform over the disc in expectation and neighbouring points do not
+    share the raster's aliasing. ``edge_angle`` (radians) splits the projected edges
     (eq. 4); ``hz`` is the horizon clip's height (length): the point's own surface, ``off``
     below it, is culled whole. Same returns as :func:`gather_operator`, every row over
     ``n_disc`` directions. Its cost is ``polygons`` projections and ``n_disc`` locations a
@@ -203,8 +207,8 @@ def disc_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_ver
     polygons.
     """
     n = points.shape[0]
-    r = resolution + 1             # pixel centres cover [-1, 1]² whatever the shift
-    h = 2.0 / resolution            # the pixel's side
+    r = resolution
+    h = 2.0 / r                     # the pixel's side
     xc = np.empty(r)
     yc = np.empty(r)
     dz = np.empty(r * r)
@@ -262,7 +266,8 @@ def disc_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_ver
             lz[v] = nx * wx + ny * wy + nz * wz
         # the pixel lattice shifted by a seeded fraction of a pixel: its centres are then
         # uniform over the disc in expectation, and the rim is not the same staircase at
-        # every point (a fixed lattice gathered 0.3 % too little in the Cornell box)
+        # every point (a fixed lattice gathered 0.3 % too little in the Cornell box). The
+        # centres -1 + h (u + j), u in [0, 1), j < R cover [-1, 1) whatever the shift.
         sx = -1.0 - 0.5 * h + h * hash01(seeds[i], 1)
         sy = -1.0 - 0.5 * h + h * hash01(seeds[i], 2)
         for j in range(r):
@@ -294,7 +299,7 @@ def disc_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_ver
                              nlx / c, nly / c, 0.0, nlz / c, xcross, cnt, item, zbuf)
         row = nnz
         for k in range(r * r):
-            if item[k] < 0 or item[k] >= P:
+            if item[k] < 0:
                 continue
             x = xc[k % r]
             y = yc[k // r]
@@ -302,7 +307,14 @@ def disc_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_ver
             d[0] = x * ax + y * bx + z * nx
             d[1] = x * ay + y * by + z * ny
             d[2] = x * az + y * bz + z * nz
-            _, tri, bu, bv = locate_hit(grid, loc, o, d, 1.0 / zbuf[k], off, np.inf)
+            if zbuf[k] > 0.0:
+                # a back face's pixel too (item >= P): where a front face coincides with it,
+                # the location takes that one; else _add_hit sees a back face, which adds
+                # nothing
+                _, tri, bu, bv = locate_hit(grid, loc, o, d, 1.0 / zbuf[k], off, np.inf)
+            else:
+                # a grazing polygon whose chord covers a pixel past its plane: the walk
+                _, tri, bu, bv = closest_hit_one(grid, o, d, off, np.inf)
             nnz = _add_hit(i, tri, bu, bv, d, tri_verts, tri_element, elem_normal,
                            elem_exclude, slot, cols, weights, excluded, nnz)
         _end_row(i, row, nnz, n_disc, slot, cols, weights, excluded, indptr)
