@@ -417,17 +417,30 @@ def fill_polygon(xs, ys, mm, e, xc, yc, ncol, nrow, x0, inv_px, y0, inv_py, mask
 
 
 @jit
+def in_frame(t1x, t1y, t1z, t2x, t2y, t2z, nx, ny, nz, x, y, z):
+    """The vector ``(x, y, z)`` in the frame ``(t1, t2, n)``: its three dot products."""
+    return (t1x * x + t1y * y + t1z * z, t2x * x + t2y * y + t2z * z,
+            nx * x + ny * y + nz * z)
+
+
+@jit
+def frame_vertices(sx, sy, sz, t1x, t1y, t1z, t2x, t2y, t2z, nx, ny, nz, vertices, lx, ly,
+                   lz):
+    """``vertices (V, 3)`` relative to ``s`` in the frame ``(t1, t2, n)``, into
+    ``lx, ly, lz (V,)``."""
+    for v in range(vertices.shape[0]):
+        lx[v], ly[v], lz[v] = in_frame(t1x, t1y, t1z, t2x, t2y, t2z, nx, ny, nz,
+                                       vertices[v, 0] - sx, vertices[v, 1] - sy,
+                                       vertices[v, 2] - sz)
+
+
+@jit
 def local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz):
     """Vertices in the shooter's frame ``(t1, t2, n)`` into ``lx, ly, lz (V,)``; returns the
     tangents ``(t1x, t1y, t1z, t2x, t2y, t2z)``."""
     t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(snx, sny, snz)
-    for v in range(vertices.shape[0]):
-        wx = vertices[v, 0] - sx
-        wy = vertices[v, 1] - sy
-        wz = vertices[v, 2] - sz
-        lx[v] = t1x * wx + t1y * wy + t1z * wz
-        ly[v] = t2x * wx + t2y * wy + t2z * wz
-        lz[v] = snx * wx + sny * wy + snz * wz
+    frame_vertices(sx, sy, sz, t1x, t1y, t1z, t2x, t2y, t2z, snx, sny, snz, vertices, lx, ly,
+                   lz)
     return t1x, t1y, t1z, t2x, t2y, t2z
 
 

@@ -36,6 +36,7 @@ from daskrad.kernels.geometry import element_planes, scene_diagonal
 from daskrad.kernels.hemisphere import (
     depth_coefficients,
     edge_capacity,
+    in_frame,
     local_frame,
     project_element,
     project_scratch,
@@ -80,9 +81,8 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz, n_li
                                    cos_thr, tab, cx, cy, cz, qx, qy, qz, qclip, xs, ys)
         if mm == 0:
             continue
-        nlx = t1x * enrm[e, 0] + t1y * enrm[e, 1] + t1z * enrm[e, 2]
-        nly = t2x * enrm[e, 0] + t2y * enrm[e, 1] + t2z * enrm[e, 2]
-        nlz = snx * enrm[e, 0] + sny * enrm[e, 1] + snz * enrm[e, 2]
+        nlx, nly, nlz = in_frame(t1x, t1y, t1z, t2x, t2y, t2z, snx, sny, snz, enrm[e, 0],
+                                 enrm[e, 1], enrm[e, 2])
         da, db, dc, de = depth_coefficients(plane_depth, qx, qy, qz, m, nlx, nly, nlz, c)
         if transpose:
             for a in range(mm):
