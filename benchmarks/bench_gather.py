@@ -12,7 +12,7 @@ junction vertices, in one run:
   thread, both methods alternated ``--repeat`` times (medians), and the per-vertex error of the
   gathered radiance ``G · L − x`` (``L`` the solution's vertex radiance) against a reference
   that favours neither: the mean of a disc of side :data:`REFERENCE_SIDE` (two turns and
-  shifts averaged) and :data:`REFERENCE_RAYS`² rays (other seeds than the arm's): relative RMS
+  shifts averaged) and :data:`REFERENCE_RAYS`² rays, all seeded apart from the arms: relative RMS
   over the vertices and the mean's relative bias, and the two references' own gap;
 - **image** (the bundled scenes): the whole render (:func:`daskrad.render.image`, a thread per
   core) with each method, seconds (medians) and, for the Cornell box, the relative RMS against
@@ -54,7 +54,8 @@ SCENES = Path(__file__).parent.parent / "scenes"
 REFERENCE_SIDE = 100
 #: The rays per side of the error's other reference: 4,096 a vertex.
 REFERENCE_RAYS = 64
-#: Added to the vertex seeds for the reference's second turn and shift.
+#: Added to the vertex seeds of the references (other turns, shifts and jitter than the
+#: arms').
 SEED_SHIFT = 1_000_003
 
 
@@ -101,8 +102,8 @@ def rows(path: Path, shots: int | None, repeat: int) -> dict:
     if gctx is None:
         return {"scene": path.name, "junction_vertices": 0}
     L = ctx.vertex_radiance
-    disc = 0.5 * (_gathered(_arm(gctx, "disc", REFERENCE_SIDE), L)[0]
-                  + _gathered(_arm(gctx, "disc", REFERENCE_SIDE, SEED_SHIFT), L)[0])
+    disc = 0.5 * (_gathered(_arm(gctx, "disc", REFERENCE_SIDE, SEED_SHIFT), L)[0]
+                  + _gathered(_arm(gctx, "disc", REFERENCE_SIDE, 2 * SEED_SHIFT), L)[0])
     rays = _gathered(_arm(gctx, "rays", REFERENCE_RAYS, SEED_SHIFT), L)[0]
     ref = 0.5 * (disc + rays)
     scale = float(np.abs(ref).mean())

@@ -7,7 +7,9 @@ caps the solve) at ``--size`` pixels, two comparisons, alternated ``--repeat`` t
 - **fans** (:class:`daskrad.kernels.grid.Fan`): the junction gather's operator rows, the rays
   from each vertex skipping the triangles below its tangent plane, against the plain walk
   (:func:`daskrad.kernels.grid.closest_hit_one`, the same kernel otherwise). Both give the
-  same rows (checked bit for bit).
+  same rows (checked bit for bit). The rays of a gather by rays, whatever the scene's method
+  (:func:`daskrad.render.gather_method`); the tiles below are those of the run's own gather
+  (the disc in a scene of few polygons), the same in every arm.
 - **light modes** (:func:`daskrad.render.light_modes`): the per-pixel pass's tiles (the gather
   applied once beforehand) when a light every corner of an element sees is taken as visible
   without shadow rays, against tracing every light at every hit. The images are compared:

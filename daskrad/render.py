@@ -1109,9 +1109,9 @@ GATHER_SIDE = 24
 #: The disc's side: ~573 pixels on the disc, as many directions as ``GATHER_SIDE²`` rays.
 DISC_SIDE = 27
 #: The disc gathers for scenes of at most this many polygon triangles, the rays above: a
-#: vertex costs the disc ~140 µs plus ~0.6 µs a triangle it projects, the rays ~450–650 µs
+#: vertex costs the disc ~150 µs plus ~0.56 µs a triangle it projects, the rays ~400–620 µs
 #: whatever the scene (the polygons' grid): equal near 800 (``bench_gather``: office2's 741
-#: triangles 601 against 667 µs a vertex, at 4.2 % against 5.2 % error).
+#: triangles 568 against 618 µs a vertex, at 4.2 % against 5.2 % error).
 DISC_POLYGONS = 800
 #: The projected edges of the disc's polygons are split so that each piece lies within
 #: this fraction of a pixel of its arc (eq. 4): at the item buffers' quarter pixel
@@ -1294,9 +1294,9 @@ def _rays_rows(gctx: GatherContext, start: int, stop: int) -> GatherOperator:
 #:
 #: Measured (``bench_gather``: per-vertex error of the gathered radiance against the mean of a
 #: disc of side 100 and 64² rays, one thread): the Cornell box's 2,663 junction vertices, rays
-#: 2.13 % RMS in 1.32 s, disc 1.30 % in 0.54 s; the lit room 1.26 / 0.85 %, 3.4× faster; the
-#: MGF cube 1.73 / 1.02 %, 512 / 226 µs a vertex. The Cornell box's render at 128² took 0.88
-#: → 0.47 s with the same error against the path tracer (relative RMS 0.01797 both).
+#: 2.13 % RMS in 1.22 s, disc 1.30 % in 0.47 s; the lit room 1.26 / 0.85 %, 3.4× faster; the
+#: MGF cube 1.73 / 1.02 %, 478 / 206 µs a vertex. The Cornell box's render at 128² took 0.83
+#: → 0.44 s with the same error against the path tracer (relative RMS 0.01797 both).
 GATHER_METHODS = {"rays": _rays_rows, "disc": _disc_rows}
 
 

@@ -181,22 +181,29 @@ def test_a_face_turned_away_hides_what_lies_behind_it(rng, way):
 
 @pytest.mark.parametrize("way", ["located", "disc"])
 def test_two_faces_back_to_back_show_the_one_facing_the_point(rng, way):
-    # a tilted panel of two one-sided faces in one plane, back to back (as converted papers
-    # are): the one facing the floor points must show, whichever wins the depth test by
-    # round-off, so every direction still meets a front face and the rows sum to 1
+    # a tilted panel of two one-sided faces back to back (as converted papers are), the one
+    # lit upwards 1e-10 below the other: seen from the floor it is a back face nearer than
+    # the front one, so it wins every depth test (by far more than round-off, yet well within
+    # the location's plane tolerance, ~1e-8 here). The face towards the points must show:
+    # every direction meets a front face, the rows sum to 1, and the panel's underside
+    # gathers its form factor
     box_v, box_e = closed_box(4)
     corners = np.array([[0.3, 0.3, 0.5], [0.7, 0.3, 0.54], [0.7, 0.7, 0.54], [0.3, 0.7, 0.5]])
+    lowered = corners - [0.0, 0.0, 1e-10]
     up = np.array([[0, 1, 2, 3]], np.int32)
     down = up[:, ::-1].copy()
-    vertices, elem_verts = merge((box_v, box_e), (corners, up), (corners.copy(), down))
-    faces = np.concatenate([_box_faces(), corners[None], corners[::-1][None]])
+    vertices, elem_verts = merge((box_v, box_e), (lowered, up), (corners, down))
+    faces = np.concatenate([_box_faces(), lowered[None], corners[::-1][None]])
     points = np.column_stack([rng.uniform(0.2, 0.8, (24, 2)), np.zeros(24)])
     indptr, cols, weights, _ = _operator(vertices, elem_verts, faces, points, way)
     np.testing.assert_allclose(np.add.reduceat(weights, indptr[:-1]), 1.0, rtol=0, atol=1e-12)
     L = np.zeros((len(vertices), 3))
     L[-4:] = 1.0                                     # the face lit downwards
     seen = apply_operator(indptr, cols, weights, L)[:, 0]
-    assert seen.min() > 0.05                         # every point sees the panel's underside
+    below = corners[::-1]                            # its corners as the points see them
+    exact = [lambert_polygon(*p, 0.0, 0.0, 1.0, below, 4) for p in points]
+    np.testing.assert_allclose(seen, exact, atol=0.02)   # as one wall's form factor
+    assert min(exact) > 0.05
 
 
 def test_the_gather_method_follows_the_polygon_count(rng):

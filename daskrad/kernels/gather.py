@@ -19,11 +19,11 @@ from daskrad.kernels._jit import jit, jit_parallel
 from daskrad.kernels.direct import hash01
 from daskrad.kernels.geometry import element_planes, orthonormal_basis
 from daskrad.kernels.grid import (
+    NO_FAN,
     aim_fan,
     any_hit_one,
     closest_hit_fan,
     closest_hit_located,
-    closest_hit_one,
     locate_hit,
     new_fan,
 )
@@ -302,14 +302,17 @@ def disc_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_ver
             d[0] = x * ax + y * bx + z * nx
             d[1] = x * ay + y * by + z * ny
             d[2] = x * az + y * bz + z * nz
-            if zbuf[k] > 0.0:
+            tp = 1.0 / zbuf[k] if zbuf[k] > 0.0 else 0.0
+            if tp > off:
                 # a back face's pixel too (item >= P): where a front face coincides with it,
                 # the location takes that one; else _add_hit sees a back face, which adds
                 # nothing
-                _, tri, bu, bv = locate_hit(grid, loc, o, d, 1.0 / zbuf[k], off, np.inf)
+                _, tri, bu, bv = locate_hit(grid, loc, o, d, tp, off, np.inf)
             else:
-                # a grazing polygon whose chord covers a pixel past its plane: the walk
-                _, tri, bu, bv = closest_hit_one(grid, o, d, off, np.inf)
+                # a grazing polygon whose chord covers a pixel past its plane, or a point
+                # nearer than a ray would look (a wall through the vertex): the ray's answer
+                _, tri, bu, bv = closest_hit_located(polygons, NO_FAN, grid, loc, o, d, off,
+                                                     np.inf)
             nnz = _add_hit(i, tri, bu, bv, d, tri_verts, tri_element, elem_normal,
                            elem_exclude, slot, cols, weights, excluded, nnz)
         _end_row(i, row, nnz, n_disc, slot, cols, weights, excluded, indptr)

@@ -33,7 +33,7 @@ import numpy as np
 
 from daskrad.kernels._jit import jit
 from daskrad.kernels.geometry import element_planes, lex_less, scene_diagonal
-from daskrad.kernels.hemisphere import local_frame
+from daskrad.kernels.hemisphere import in_frame, local_frame
 from daskrad.kernels.tolerances import SPHERE_PAD
 
 #: Face axes in the shooter's local frame: for each of the 5 faces, (index, sign) of the local
@@ -190,9 +190,8 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, sctr, sr
             zmax = max(zmax, lz[elem_verts[e, a]])
         if zmax <= hz:
             continue
-        nl[0] = t1x * enrm[e, 0] + t1y * enrm[e, 1] + t1z * enrm[e, 2]
-        nl[1] = t2x * enrm[e, 0] + t2y * enrm[e, 1] + t2z * enrm[e, 2]
-        nl[2] = snx * enrm[e, 0] + sny * enrm[e, 1] + snz * enrm[e, 2]
+        nl[0], nl[1], nl[2] = in_frame(t1x, t1y, t1z, t2x, t2y, t2z, snx, sny, snz,
+                                       enrm[e, 0], enrm[e, 1], enrm[e, 2])
         for f in range(5):
             ia = _FACE_AXES[f, 0, 0]
             sa = float(_FACE_AXES[f, 0, 1])

@@ -699,9 +699,8 @@ def _nearness(e, dx, dy, dz_, sx, sy, sz, enrm, eoff, t1x, t1y, t1z, t2x, t2y, t
     c = eoff[e] - (enrm[e, 0] * sx + enrm[e, 1] * sy + enrm[e, 2] * sz)
     if c == 0.0:
         return 0.0
-    nlx = t1x * enrm[e, 0] + t1y * enrm[e, 1] + t1z * enrm[e, 2]
-    nly = t2x * enrm[e, 0] + t2y * enrm[e, 1] + t2z * enrm[e, 2]
-    nlz = snx * enrm[e, 0] + sny * enrm[e, 1] + snz * enrm[e, 2]
+    nlx, nly, nlz = in_frame(t1x, t1y, t1z, t2x, t2y, t2z, snx, sny, snz, enrm[e, 0],
+                             enrm[e, 1], enrm[e, 2])
     return (nlx * dx + nly * dy + nlz * dz_) / c
 
 
