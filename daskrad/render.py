@@ -25,6 +25,7 @@ import numpy as np
 from daskrad import direct, tolerances
 from daskrad.direct import DirectLight, Lights
 from daskrad.errors import SceneError
+from daskrad.formfactor import edge_split_angle
 from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_TRACE, LIGHT_VISIBLE
 from daskrad.kernels.grid import (
     NO_LOCATOR,
@@ -1258,14 +1259,11 @@ def _disc_rows(gctx: GatherContext, start: int, stop: int) -> GatherOperator:
     if gctx.polygons is None or gctx.locator is None:
         raise ValueError("the disc gather needs the polygons and the locator")
     R = int(gctx.side)
-    corners = gctx.polygons.triangles.reshape(-1, 3)
-    hz = tolerances.HORIZON_EPS * float(np.linalg.norm(corners.max(axis=0) - corners.min(axis=0)))
     return GatherOperator(*disc_operator(
         gctx.grid, gctx.tri_verts, gctx.tri_element, gctx.elem_normal, gctx.exclude,
         int(gctx.n_vertices), gctx.points[start:stop], gctx.normals[start:stop],
-        gctx.seeds[start:stop], float(gctx.offset), R,
-        math.sqrt(16.0 * DISC_SAGITTA_PX / R), max(hz, 1e-300), gctx.polygons,
-        gctx.locator))
+        gctx.seeds[start:stop], float(gctx.offset), R, edge_split_angle(R, DISC_SAGITTA_PX),
+        tolerances.HORIZON_EPS, gctx.polygons, gctx.locator))
 
 
 def _rays_rows(gctx: GatherContext, start: int, stop: int) -> GatherOperator:

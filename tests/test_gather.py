@@ -9,13 +9,11 @@ factor in expectation, and independent of how the vertices are split into tasks.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
 from daskrad import render
-from daskrad.formfactor import element_grid
+from daskrad.formfactor import edge_split_angle, element_grid
 from daskrad.kernels.gather import apply_operator, disc_operator, gather_operator
 from daskrad.kernels.grid import NO_LOCATOR, build_grid, locator
 from daskrad.kernels.lambert import lambert_polygon
@@ -50,7 +48,7 @@ def _operator(vertices, elem_verts, faces, points, way, exclude=None, first_seed
     args = (grid, np.ascontiguousarray(tri), np.asarray(owner), normal, exclude, len(vertices),
             points, normals, seeds, 1e-9)
     if way == "disc":
-        return disc_operator(*args, DISC, math.sqrt(16.0 * render.DISC_SAGITTA_PX / DISC),
+        return disc_operator(*args, DISC, edge_split_angle(DISC, render.DISC_SAGITTA_PX),
                              1e-9, polygons, locator(grid.triangles))
     if way == "located":
         return gather_operator(*args, SIDE, polygons, locator(grid.triangles), True)

@@ -588,12 +588,12 @@ class Store:
                        ("unshot", sol.unshot))}
             for name, a in arrays.items():
                 write_array(s, name, a, compress=False, dims=_SLOT[name],
-                     units="W m-2", description=f"exact solver state: {name}")
+                            units="W m-2", description=f"exact solver state: {name}")
             if sol.row_kind is not None:
                 arrays["row_kind"] = np.asarray(sol.row_kind, np.int8)
                 write_array(s, "row_kind", arrays["row_kind"], compress=False,
-                     dims=_SLOT_SINCE["row_kind"], description="the row each patch shoots "
-                     "through: 1 penumbra-sampled, 0 one point, -1 not chosen yet")
+                            dims=_SLOT_SINCE["row_kind"], description="the row each patch "
+                            "shoots through: 1 penumbra-sampled, 0 one point, -1 not chosen yet")
             s.attrs.put(_sealed({**state, "sha256": {n: sha256(a) for n, a in arrays.items()}}))
         # only now is the slot complete: name it (one atomic zarr.json replacement; not
         # attrs.update, which zarr 3 writes key by key: a client killed between two keys left
@@ -806,8 +806,8 @@ class Store:
             offset += a.nbytes
         blob = np.concatenate(parts) if parts else np.zeros(0, np.uint8)
         write_array(g, "blob", blob, compress=False, dims=("byte",),
-             chunks=(max(1, min(len(blob), BLOB_CHUNK)),),
-             description=f"task context {kind}: its arrays, packed (the group's layout)")
+                    chunks=(max(1, min(len(blob), BLOB_CHUNK)),),
+                    description=f"task context {kind}: its arrays, packed (the group's layout)")
         g.attrs.put({"meta": meta, "digests": digests, "layout": layout, "token": token})
         return token
 

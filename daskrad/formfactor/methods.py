@@ -140,6 +140,13 @@ def _check_resolution(resolution) -> int:
     return int(resolution)
 
 
+def edge_split_angle(resolution, sagitta_px: float = tolerances.EDGE_SAGITTA_PX) -> float:
+    """The angle, **radians**, each projected edge piece of an ``R × R`` item buffer over the
+    base disc may subtend for its outline to lie within ``sagitta_px`` of a pixel of the arc:
+    ``θ = sqrt(16 s / R)`` (:func:`auto_edge_angle`)."""
+    return math.sqrt(16.0 * sagitta_px / resolution)
+
+
 def auto_edge_angle(resolution) -> float:
     """The automatic edge-split threshold of the item-buffer methods, **degrees** (eq. 4).
 
@@ -152,8 +159,7 @@ def auto_edge_angle(resolution) -> float:
     90°). The paper's fixed 1° (``edge_angle=1.0``) moves the outline by at most 0.005 pixel at
     ``R = 256``, far below the ±1/2 pixel of the raster's own sampling, at up to 7× the points.
     """
-    theta = math.sqrt(16.0 * tolerances.EDGE_SAGITTA_PX / resolution)
-    return min(math.degrees(theta), 90.0)
+    return min(math.degrees(edge_split_angle(resolution)), 90.0)
 
 
 def _raster_args(resolution, edge_angle=None, depth="exact", auto=True, grid=None,

@@ -17,7 +17,7 @@ from numba import prange
 
 from daskrad.kernels._jit import jit, jit_parallel
 from daskrad.kernels.direct import hash01
-from daskrad.kernels.geometry import element_planes, orthonormal_basis
+from daskrad.kernels.geometry import element_planes, orthonormal_basis, scene_diagonal
 from daskrad.kernels.grid import (
     NO_FAN,
     aim_fan,
@@ -185,7 +185,8 @@ def _end_row(i, row, nnz, count, slot, cols, weights, excluded, indptr):
 
 @jit
 def disc_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_vertices,
-                  points, normals, seeds, off, resolution, edge_angle, hz, polygons, loc):
+                  points, normals, seeds, off, resolution, edge_angle, horizon_eps, polygons,
+                  loc):
     """:func:`gather_operator` by the hemisphere base (Doi's item buffer, the form factors'
     own method, :mod:`daskrad.kernels.hemisphere`) instead of rays: from each point the
     scene's polygons (``polygons.triangles``) are projected onto the base disc of an
@@ -202,11 +203,12 @@ def disc_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_ver
     the normal and shifted by a fraction of a pixel, both seeded per point (``seeds``), so
     that its centres are uniform over the disc in expectation and neighbouring points do not
     share the raster's aliasing. ``edge_angle`` (radians) splits the projected edges
-    (eq. 4); ``hz`` is the horizon clip's height (length): the point's own surface, ``off``
-    below it, is culled whole. Same returns as :func:`gather_operator`, every row over
-    ``n_disc`` directions. Its cost is ``polygons`` projections and ``n_disc`` locations a
-    point, against ``side²`` walks of the polygons' grid: the cheaper for a scene of few
-    polygons.
+    (eq. 4); ``horizon_eps`` is the horizon clip's height relative to the polygons' diagonal,
+    as for the form factors (:func:`daskrad.kernels.hemisphere.hemisphere_visibility`): the
+    point's own surface, ``off`` below it, is culled whole. Same returns as
+    :func:`gather_operator`, every row over ``n_disc`` directions. Its cost is ``polygons``
+    projections and ``n_disc`` locations a point, against ``side²`` walks of the polygons'
+    grid: the cheaper for a scene of few polygons.
     """
     n = points.shape[0]
     r = resolution
@@ -224,6 +226,7 @@ def disc_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_ver
             for x in range(3):
                 pv[3 * p + a, x] = ptris[p, a, x]
     front_n, front_off = element_planes(pv, ev)
+    hz = max(horizon_eps * scene_diagonal(pv), 1e-300)
     back_n = -front_n
     back_off = -front_off
     cos_thr = math.cos(edge_angle)
