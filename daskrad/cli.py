@@ -293,6 +293,13 @@ def entry(argv: list[str] | None = None) -> int:
 
 
 def _terminate(signum, frame):
+    # a SIGTERM sent to the whole group (a batch system's stop) ends the worker processes too,
+    # and the scheduler in this process would log an ERROR for each key it can no longer
+    # gather from them, before this process's one line: the run is stopping, Dask's account
+    # of it is noise (Ctrl-C has none: the workers ignore SIGINT and the client closes them)
+    import logging
+
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
     raise Terminated("terminated")
 
 
