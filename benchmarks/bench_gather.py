@@ -17,14 +17,20 @@ junction vertices, in one run:
 - **image** (the bundled scenes): the whole render (:func:`daskrad.render.image`, a thread per
   core) with each method, seconds (medians) and, for the Cornell box, the relative RMS against
   the cached path-traced reference of :mod:`benchmarks.bench_reference` (2,048 paths per
-  pixel, 128 × 128, off the light as well).
+  pixel, 128 × 128, off the light as well);
+- **ahead** (the bundled scenes): whole warm runs (:func:`daskrad.run.run`, default settings,
+  in-process on every core) with the view's gather computed ahead on the cores the solve
+  leaves idle (:data:`daskrad.render.GATHER_AHEAD`) and in the render, alternated ``--runs``
+  times: medians of the solve's and the render's seconds and of their sum, and whether the
+  two arms' images are the same bits.
 
 Scenes: the bundled Cornell box and lit room, and ``--scene PATH`` (e.g. RenderPark's MGF
 scenes converted to OBJ, which are not in the repository: docs/references.md; ``--shots``
 caps their solves). A scene of more than :data:`daskrad.render.DISC_POLYGONS` polygon
 triangles gathers by rays in a run, but both are measured here.
 
-``python -m benchmarks.bench_gather [--scene PATH ...] [--shots N] [--repeat N]``; writes
+``python -m benchmarks.bench_gather [--scene PATH ...] [--shots N] [--repeat N] [--runs N]``;
+writes
 ``benchmarks/results/gather.json``.
 """
 
@@ -35,6 +41,7 @@ import dataclasses
 import json
 import statistics
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -44,7 +51,9 @@ from benchmarks.bench_reference import SIZE as REFERENCE_SIZE
 from benchmarks.bench_reference import errors, reference
 from daskrad import direct, render, solve
 from daskrad.distributed.executor import InProcess
+from daskrad.io import read_exr
 from daskrad.preprocess import preprocess
+from daskrad.run import run
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
 
@@ -160,17 +169,49 @@ def image(path: Path, repeat: int) -> dict:
     return out
 
 
+def ahead(path: Path, runs: int) -> dict:
+    """Whole warm runs of ``path`` (defaults), the gather computed ahead and in the render,
+    alternated ``runs`` times after one warm-up run of each: medians and the bits."""
+    seconds: dict = {True: [], False: []}
+    pictures: dict = {}
+    before = render.GATHER_AHEAD
+    with tempfile.TemporaryDirectory(prefix="daskrad-ahead-") as tmp:
+        try:
+            for n in range(runs + 1):
+                for arm in (False, True):
+                    render.GATHER_AHEAD = arm
+                    out = Path(tmp) / f"{n}-{int(arm)}.exr"
+                    report = run(path, out, Settings(), progress=False)
+                    pictures[arm] = read_exr(out)
+                    if n:
+                        seconds[arm].append(report["seconds"])
+        finally:
+            render.GATHER_AHEAD = before
+
+    def medians(rows):
+        return {k: statistics.median(r[k] for r in rows) for k in ("solve", "render")} | {
+            "solve_render": statistics.median(r["solve"] + r["render"] for r in rows)}
+
+    on, off = medians(seconds[True]), medians(seconds[False])
+    return {"scene": path.name, "runs": runs, "ahead": on, "in_render": off,
+            "speedup": off["solve_render"] / on["solve_render"],
+            "same_bits": bool(np.array_equal(pictures[True], pictures[False]))}
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_gather")
     parser.add_argument("--scene", type=Path, action="append", default=[])
     parser.add_argument("--shots", type=int, default=None,
                         help="cap the solves of --scene scenes (default: the run's own)")
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--runs", type=int, default=8,
+                        help="alternated whole runs of each arm of the ahead table")
     args = parser.parse_args([] if argv is None else argv)
     bundled = [SCENES / "cornell_box.obj", SCENES / "lit_room.obj"]
     table = [rows(p, None, args.repeat) for p in bundled]
     table += [rows(p, args.shots, args.repeat) for p in args.scene]
     images = [image(p, args.repeat) for p in bundled]
+    aheads = [ahead(p, args.runs) for p in bundled]
 
     print("junction gather, one thread: seconds (medians of "
           f"{args.repeat}) and per-vertex error against the mean of a disc of side "
@@ -200,10 +241,19 @@ def main(argv: list[str] | None = None) -> dict:
                 line += (f" (rel RMS {m['relative_rms']:.5f}, off the light "
                          f"{m['relative_rms_off_light']:.5f})")
         print(line)
+    print(f"\nwhole warm runs, defaults, every core: the view's gather ahead (during the "
+          f"solve) and in the render, medians of {args.runs} alternated")
+    print(f"{'scene':<16}{'solve':>8}{'render':>8}{'sum':>8}   {'solve':>8}{'render':>8}"
+          f"{'sum':>8}{'x':>7}  same bits")
+    for r in aheads:
+        a, b = r["in_render"], r["ahead"]
+        print(f"{r['scene']:<16}{a['solve']:>8.3f}{a['render']:>8.3f}{a['solve_render']:>8.3f}"
+              f"   {b['solve']:>8.3f}{b['render']:>8.3f}{b['solve_render']:>8.3f}"
+              f"{r['speedup']:>7.2f}  {r['same_bits']}")
     result = {"repeat": args.repeat, "reference_side": REFERENCE_SIDE,
               "reference_rays": REFERENCE_RAYS,
               "disc_side": render.DISC_SIDE, "gather_side": render.GATHER_SIDE,
-              "rows": table, "images": images}
+              "rows": table, "images": images, "ahead": aheads}
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "gather.json").write_text(json.dumps(result, indent=2))
     return result

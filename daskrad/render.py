@@ -372,12 +372,13 @@ def _hit_polygons(ctx: RenderContext) -> Grid | None:
 POLYGON_HITS = True
 
 
-def with_locator(ctx: RenderContext) -> RenderContext:
+def with_locator(ctx: RenderContext, known: np.ndarray | None = None) -> RenderContext:
     """``ctx`` with its :attr:`RenderContext.locator` when it has polygons to find hits
-    among (:data:`POLYGON_HITS`), else itself."""
+    among (:data:`POLYGON_HITS`), else itself. ``known``: the locator of the same grid,
+    made already."""
     if not POLYGON_HITS or ctx.occluders is None or ctx.locator is not None:
         return ctx
-    return replace(ctx, locator=locator(ctx.grid.triangles))
+    return replace(ctx, locator=known if known is not None else locator(ctx.grid.triangles))
 
 
 def _gouraud(values: np.ndarray, corners: np.ndarray, u: np.ndarray, v: np.ndarray):
@@ -731,10 +732,9 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
     if rdiff is not None and direct_context is not None:
         # indirect light gathered at vertices beside a junction, where element averages miss
         # the near field (the foot of a block's face on a lit floor); applied per view
-        size = diagonal / 32.0 if element_size is None else element_size
-        junctions = junctions_of(direct_context, tvertices, elem_verts, elem_reflectance,
-                                 elem_emission, vertex_indirect, JUNCTION_REACH * size,
-                                 mirror_depth > 0 and bool(np.asarray(elem_mirror, bool).any()))
+        junctions = _junctions(direct_context, tvertices, elem_verts, elem_reflectance,
+                               elem_emission, vertex_indirect, diagonal, element_size,
+                               mirror_depth, elem_mirror)
     hard, vertex_hard = None, None
     if rdiff is not None and lights is not None and direct_context is not None:
         hard, vertex_hard = _hard_part(direct_context, tvertices, elem_verts, elem_reflectance,
@@ -767,6 +767,19 @@ def perpixel_context(ctx: RenderContext, elem_verts: np.ndarray, *, vertex_indir
         offset=tolerances.RAY_OFFSET * float(diagonal),
         junctions=junctions,
     )
+
+
+def _junctions(direct_context, tvertices, elem_verts: np.ndarray, elem_reflectance: np.ndarray,
+               elem_emission: np.ndarray, vertex_indirect: np.ndarray, diagonal: float,
+               element_size: float | None, mirror_depth: int, elem_mirror: np.ndarray
+               ) -> Junctions:
+    """The :class:`Junctions` :func:`perpixel_context` gives a context (and
+    :func:`geometry_context`): reaching one element size (1/32 of ``diagonal`` when not
+    given, :data:`JUNCTION_REACH`), everywhere when a mirror may show any vertex."""
+    size = diagonal / 32.0 if element_size is None else element_size
+    return junctions_of(direct_context, tvertices, elem_verts, elem_reflectance, elem_emission,
+                        vertex_indirect, JUNCTION_REACH * size,
+                        mirror_depth > 0 and bool(np.asarray(elem_mirror, bool).any()))
 
 
 def camera(scene: Scene, settings: Settings) -> Camera:
@@ -1025,16 +1038,21 @@ class Image:
 
 
 def image(scene: Scene, light: DirectLight, sol: Solution, settings: Settings, executor=None,
-          cam: Camera | None = None) -> Image:
+          cam: Camera | None = None, ahead: GatherAhead | None = None) -> Image:
     """Step 4: render ``sol`` seen by ``cam`` (default :func:`camera`), tile by tile on
-    ``executor`` (``tile-…`` futures; default this process)."""
+    ``executor`` (``tile-…`` futures; default this process); ``ahead``: the view's junction
+    gather started during the solve (:func:`gather_ahead`)."""
     t = time.perf_counter()
+    if ahead is not None:
+        # its plan done first: the plan may cast the view's rays on numba's threads, and the
+        # context below builds a grid on them (numba's workqueue layer takes one caller)
+        ahead.plan()
     if not (np.isfinite(sol.radiosity).all() and np.isfinite(sol.unshot).all()):
         raise SceneError("the radiosity solution is not finite (NaN or inf): emission or "
                          "light intensities too large for a float64", scene.path)
     split = vertex_split(light, sol)
     ctx = context(scene, light, sol, settings, cam or camera(scene, settings), split)
-    out, stats = pixels_stats(ctx, executor)
+    out, stats = pixels_stats(ctx, executor, ahead)
     if not np.isfinite(out).all():
         raise SceneError("the image is not finite (NaN or inf radiance)", scene.path)
     return Image(pixels=out, context=ctx,
@@ -1049,9 +1067,11 @@ def pixels(ctx: RenderContext, executor=None) -> np.ndarray:
     return pixels_stats(ctx, executor)[0]
 
 
-def pixels_stats(ctx: RenderContext, executor=None) -> tuple[np.ndarray, dict]:
-    """:func:`pixels` and the tiles' :func:`render_tile_stats`, summed."""
-    ctx = for_view(ctx, executor)
+def pixels_stats(ctx: RenderContext, executor=None, ahead: GatherAhead | None = None
+                 ) -> tuple[np.ndarray, dict]:
+    """:func:`pixels` and the tiles' :func:`render_tile_stats`, summed (``ahead``:
+    :func:`for_view`'s)."""
+    ctx = for_view(ctx, executor, ahead)
     parts = tiles(ctx.camera.width, ctx.camera.height)
     out = np.zeros((ctx.camera.height, ctx.camera.width, 3))
     done = (executor.tiles(ctx, parts) if executor is not None
@@ -1340,24 +1360,183 @@ def junctions_of(dctx, tvertices, elem_verts: np.ndarray, elem_reflectance: np.n
                      reach=float(reach), everywhere=bool(everywhere))
 
 
-def for_view(ctx: RenderContext, executor=None) -> RenderContext:
+def for_view(ctx: RenderContext, executor=None, ahead=None) -> RenderContext:
     """``ctx`` with its junction gather applied for its camera (``ctx`` itself when it has
     none): the gathered change added to the vertex radiance and to its interpolated parts.
     Every image goes through it (:func:`pixels`), so a run and a re-render with the same
     camera give the same bits. ``executor`` casts the rays (threads or ``gather-…`` tasks).
-    The view's rays find their hits among the polygons (:func:`with_locator`)."""
-    ctx = with_locator(ctx)
+    The view's rays find their hits among the polygons (:func:`with_locator`).
+
+    ``ahead``: the gather's operator computed before the solution was known
+    (:func:`gather_ahead`), taken when it was planned for this context's mesh and camera;
+    the operator is geometry alone, so it is the one computed here, bit for bit."""
+    plan = ahead.plan() if ahead is not None else None
+    if plan is None or not plan.fits(ctx):
+        plan, ahead = None, None
+    ctx = with_locator(ctx, plan.locator if plan is not None else None)
     j = ctx.junctions
     if j is None:
         return ctx
-    everywhere = j.everywhere or ctx.camera is None      # no view: gather what any may show
-    delta = _junction_gather(ctx, j, executor, view=not everywhere)
+    if plan is None:
+        plan = plan_gather(ctx)
+    G = ahead.operator() if ahead is not None else gather_operator_of(plan, executor)
+    delta = _gather_change(ctx, j, plan.vertices, G)
     out = replace(ctx, vertex_radiance=ctx.vertex_radiance + delta, junctions=None)
     if ctx.vertex_indirect is not None:
         out = replace(out, vertex_indirect=ctx.vertex_indirect + delta)
     if ctx.vertex_soft is not None:
         out = replace(out, vertex_soft=ctx.vertex_soft + delta)
     return out
+
+
+class GatherPlan(NamedTuple):
+    """Which vertices a view's junction gather takes, and what its rows are computed with
+    (:func:`plan_gather`). Geometry alone: planned before the solution is known, the rows
+    may be computed while the solve runs (:func:`gather_ahead`).
+
+    vertices : (n,) int64
+        The junction vertices gathered.
+    context : GatherContext or None
+        What their rows are computed with (None when ``n`` is 0).
+    grid : Grid, camera : Camera or None, spp : int
+        The element grid, camera and samples per pixel of the context it was planned for
+        (:meth:`fits`).
+    locator : (T, 13) float64 or None
+        That context's :attr:`RenderContext.locator`.
+    """
+
+    vertices: np.ndarray
+    context: GatherContext | None
+    grid: Grid
+    camera: Camera | None
+    spp: int
+    locator: np.ndarray | None
+
+    def fits(self, ctx: RenderContext) -> bool:
+        """Whether this is the plan of ``ctx``'s view: the same mesh (its grid, the same
+        object) and the same camera object and samples per pixel."""
+        return ctx.grid is self.grid and ctx.camera is self.camera and ctx.spp == self.spp
+
+    def ranges(self, executor=None, batch: int | None = None) -> list[tuple[int, int]]:
+        """Ranges of :attr:`vertices`, one a task (:func:`gather_batch`, or ``batch``
+        vertices each)."""
+        n = len(self.vertices)
+        return direct.batches(0, n, batch or gather_batch(n, executor)) if n else []
+
+
+def plan_gather(ctx: RenderContext) -> GatherPlan | None:
+    """The :class:`GatherPlan` of ``ctx``'s view (None: the context has no junction
+    gather). Reads the geometry of ``ctx`` and its junctions, never a radiance."""
+    ctx = with_locator(ctx)
+    j = ctx.junctions
+    if j is None:
+        return None
+    everywhere = j.everywhere or ctx.camera is None      # no view: gather what any may show
+    idx = _gathered_vertices(ctx, j, view=not everywhere)
+    gctx = None
+    if len(idx):
+        polygons = _hit_polygons(ctx)
+        method = gather_method(polygons)
+        gctx = GatherContext(grid=ctx.grid, tri_verts=ctx.tri_verts,
+                             tri_element=ctx.tri_element, elem_normal=ctx.elem_normal,
+                             exclude=j.exclude, n_vertices=len(ctx.vertex_radiance),
+                             points=np.ascontiguousarray(j.points[idx]),
+                             normals=np.ascontiguousarray(j.normals[idx]),
+                             seeds=idx.astype(np.int64), offset=j.offset,
+                             side=DISC_SIDE if method == "disc" else GATHER_SIDE,
+                             polygons=polygons,
+                             locator=ctx.locator if polygons is not None else None,
+                             method=method)
+    return GatherPlan(idx, gctx, ctx.grid, ctx.camera, ctx.spp, ctx.locator)
+
+
+def gather_operator_of(plan: GatherPlan, executor=None) -> GatherOperator | None:
+    """The operator of ``plan``'s rows, cast by ``executor.gather`` (threads or
+    ``gather-…`` tasks) when given; None when it gathers no vertex."""
+    if plan.context is None:
+        return None
+    ranges = plan.ranges(executor)
+    parts = (executor.gather(plan.context, ranges) if executor is not None
+             else [gather_vertices(plan.context, a, b) for a, b in ranges])
+    return GatherOperator.concatenate(parts)
+
+
+#: Junction vertices per range of a gather computed ahead (:func:`gather_ahead`): a range
+#: the render asks for while it is still being computed on an idle core is computed again
+#: (the same bits), so short ranges waste little (~6 ms at the disc's ~190 µs a vertex).
+AHEAD_BATCH = 32
+
+
+class GatherAhead:
+    """A view's junction gather computed before the render asks for it
+    (:func:`gather_ahead`): :meth:`plan` and :meth:`operator`, as :func:`plan_gather` and
+    :func:`gather_operator_of` give them, wherever they were computed."""
+
+    def __init__(self, handle):
+        self._handle = handle          # the executor's handle (InProcess.ahead)
+
+    def plan(self) -> GatherPlan | None:
+        return self._handle.plan()
+
+    def progress(self) -> tuple[int, int]:
+        """``(ranges computed ahead, ranges)`` so far."""
+        return self._handle.progress()
+
+    def join(self, timeout: float | None = None) -> bool:
+        """Wait until nothing more is computed ahead; whether that is so."""
+        return self._handle.join(timeout)
+
+    def operator(self) -> GatherOperator | None:
+        parts = self._handle.result()
+        return GatherOperator.concatenate(parts) if parts else None
+
+
+def gather_ahead(scene: Scene, light: DirectLight, settings: Settings, cam: Camera,
+                 executor) -> GatherAhead | None:
+    """Start the junction gather of the view ``cam`` on the cores the solve leaves idle,
+    while it runs (``executor.ahead``, an idle-priority thread in-process; None when the
+    executor starts nothing, or the run has no junction gather): the gather reads the mesh
+    and its direct context only, never a radiance (:class:`GatherPlan`). :func:`image` then
+    takes it (:func:`for_view`).
+
+    Not on a cluster: the gather's tasks sent at a Dask priority below the rows' took from
+    the solve what they spared the render (the Cornell box at 73,063 elements, 2 thread
+    workers, medians of 2: solve 3.60 → 4.92 s, render 2.12 → 0.87 s, the run 6.83 → 6.93 s;
+    1 worker 9.97 → 9.64 s)."""
+    start = getattr(executor, "ahead", None)
+    if start is None or not GATHER_AHEAD or not settings.per_pixel \
+            or light.irradiance is None or light.context is None:
+        return None
+
+    def plan():
+        return plan_gather(geometry_context(scene, light, settings, cam))
+
+    handle = start("gather", plan, lambda p: p.context, lambda p: p.ranges(batch=AHEAD_BATCH))
+    return GatherAhead(handle) if handle is not None else None
+
+
+#: Whether a run computes its view's junction gather ahead, during the solve
+#: (:func:`gather_ahead`); False computes it in the render, as before: the benchmark's
+#: reference arm (``bench_gather``'s whole runs). The same bits either way.
+GATHER_AHEAD = True
+
+
+def geometry_context(scene: Scene, light: DirectLight, settings: Settings,
+                     cam: Camera) -> RenderContext:
+    """The render context of ``light``'s mesh seen by ``cam`` as far as geometry goes: grids,
+    triangles, the camera and the junctions (:func:`junctions_of`, as :func:`context` makes
+    them), with zero radiance; what :func:`plan_gather` reads."""
+    mesh = light.mesh
+    h = mesh.hierarchy
+    zero = np.zeros((len(h.vertices), 3))
+    ctx = RenderContext(grid=mesh.grid, tri_verts=mesh.tri_verts, tri_element=mesh.tri_element,
+                        elem_normal=h.elem_normal, vertex_radiance=zero, camera=cam,
+                        spp=settings.spp, occluders=mesh.occluders.grid)
+    mats, mat = scene.materials, h.elem_material
+    return replace(ctx, junctions=_junctions(
+        light.context, light.tvertices, h.elem_verts, mesh.reflectance, mats.emission[mat],
+        zero, scene.diagonal, settings.element_size or default_sizes(scene)[1],
+        settings.mirror_depth, mats.mirror[mat]))
 
 
 def _corners(elem_verts: np.ndarray, elements: np.ndarray, n_vertices: int) -> np.ndarray:
@@ -1407,17 +1586,9 @@ def _gathered(ctx: RenderContext, j: Junctions, vertices: np.ndarray, n: int,
     return _corners(j.elem_verts, _touching(j.elem_verts, beside), n) & j.gatherable
 
 
-def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
-                     view: bool = False) -> np.ndarray:
-    """``(V, 3)``: the change of vertex radiance when the indirect light of the vertices
-    beside a junction is gathered (:mod:`daskrad.kernels.gather`) instead of averaged from
-    their elements: ``ρ · mean(L)`` over cosine-distributed rays from the vertex, ``L`` the
-    radiance the solution shows (Gouraud of ``ctx.vertex_radiance``) less the emitters'
-    ``Ke`` when the direct pass lit the vertices with them (two-pass), minus the vertex's
-    current indirect radiance. T-vertices take the mean of their edge's ends (no seam). The
-    rays are cast by ``executor.gather`` (threads or ``gather-…`` tasks) when given.
-
-    Which vertices: those beside a junction (within ``reach``) and the other corners of every
+def _gathered_vertices(ctx: RenderContext, j: Junctions, view: bool = False) -> np.ndarray:
+    """``(n,) int64``: the vertices the junction gather takes (:func:`_gather_change`): those
+    beside a junction (another surface within ``j.reach``) and the other corners of every
     element with such a vertex. The elements along a junction have the wrong radiosity: a
     shooting patch gives every receiver its *average* radiosity, while a receiver beside the
     junction sees mostly the patch's part at the junction, darker than its average (the floor
@@ -1426,11 +1597,6 @@ def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
     60 % too bright, the floor's in front of it 18 %). A corner one element away from the
     junction averages those elements, and Gouraud interpolation carries their error across
     the whole element; gathered, the element is interpolated between gathered corners only.
-
-    The first pass is then corrected :data:`GATHER_PASSES` times by gathering the change the
-    previous pass made (the gather is linear in the radiance seen): the two sides of a
-    junction (floor and block face) light each other, and the first pass saw both with their
-    averaged values.
 
     ``view``: when more than :data:`GATHER_ALL` vertices are to be gathered, only the corners
     of the region of the view are (the elements the image shows, :func:`seen_elements`, and
@@ -1443,15 +1609,13 @@ def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
     shown vertex near the frame's edge may differ from a whole gather's by what the change
     beyond the region would have sent it (the wall-on-floor test scene, zoomed from a 40° to
     a 15° view: up to 0.65 % at 6 of 9 vertices before the neighbours were added).
-    ``j.vertex_indirect`` and ``j.vertex_rho`` are the current indirect radiance and the
-    reflectance at each vertex.
+    Geometry alone decides (:class:`GatherPlan`).
     """
     V = len(ctx.vertex_radiance)
-    delta = np.zeros((V, 3))
     elem_verts = j.elem_verts
     cand = np.flatnonzero(j.gatherable)
     if len(cand) == 0:
-        return delta
+        return cand.astype(np.int64)
     gathered = None
     region = None
     whole = None
@@ -1480,23 +1644,29 @@ def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
             # too many for the whole scene: the view region's only (whether a vertex is
             # gathered does not depend on the region, only which are)
             gathered &= region if region is not None else _view_region(ctx, elem_verts, V)
-    idx = np.flatnonzero(gathered)
-    if len(idx) == 0:
+    return np.flatnonzero(gathered).astype(np.int64)
+
+
+def _gather_change(ctx: RenderContext, j: Junctions, idx: np.ndarray,
+                   G: GatherOperator | None) -> np.ndarray:
+    """``(V, 3)``: the change of vertex radiance when the indirect light of the vertices
+    ``idx`` (:func:`_gathered_vertices`) is gathered (:mod:`daskrad.kernels.gather`, the
+    operator ``G`` of their rows, :func:`gather_operator_of`) instead of averaged from their
+    elements: ``ρ · mean(L)`` over cosine-distributed directions from the vertex, ``L`` the
+    radiance the solution shows (Gouraud of ``ctx.vertex_radiance``) less the emitters' ``Ke``
+    when the direct pass lit the vertices with them (two-pass), minus the vertex's current
+    indirect radiance. T-vertices take the mean of their edge's ends (no seam).
+
+    The first pass is then corrected :data:`GATHER_PASSES` times by gathering the change the
+    previous pass made (the gather is linear in the radiance seen): the two sides of a
+    junction (floor and block face) light each other, and the first pass saw both with their
+    averaged values. ``j.vertex_indirect`` and ``j.vertex_rho`` are the current indirect
+    radiance and the reflectance at each vertex.
+    """
+    V = len(ctx.vertex_radiance)
+    delta = np.zeros((V, 3))
+    if G is None or len(idx) == 0:
         return delta
-    polygons = _hit_polygons(ctx)
-    method = gather_method(polygons)
-    gctx = GatherContext(grid=ctx.grid, tri_verts=ctx.tri_verts, tri_element=ctx.tri_element,
-                         elem_normal=ctx.elem_normal, exclude=j.exclude, n_vertices=V,
-                         points=np.ascontiguousarray(j.points[idx]),
-                         normals=np.ascontiguousarray(j.normals[idx]),
-                         seeds=idx.astype(np.int64), offset=j.offset,
-                         side=DISC_SIDE if method == "disc" else GATHER_SIDE,
-                         polygons=polygons,
-                         locator=ctx.locator if polygons is not None else None, method=method)
-    ranges = direct.batches(0, len(idx), gather_batch(len(idx), executor))
-    parts = (executor.gather(gctx, ranges) if executor is not None
-             else [gather_vertices(gctx, a, b) for a, b in ranges])
-    G = GatherOperator.concatenate(parts)     # the rays are cast once, for every pass
     tv = TVertices(j.tv_vertex, j.tv_a, j.tv_b)
     rho = j.vertex_rho
     delta[idx] = rho[idx] * (G.mean_radiance(ctx.vertex_radiance) - G.excluded) \
@@ -1505,7 +1675,7 @@ def _junction_gather(ctx: RenderContext, j: Junctions, executor=None,
     change = delta
     for _ in range(GATHER_PASSES):
         # the light the last pass's change sends to the gathered vertices, along the same
-        # rays (a change holds no emission)
+        # directions (a change holds no emission)
         change_at = G.mean_radiance(change)
         change = np.zeros((V, 3))
         change[idx] = rho[idx] * change_at

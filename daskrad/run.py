@@ -92,6 +92,8 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         seconds["direct"], t = time.perf_counter() - t, time.perf_counter()
         mesh = light.mesh
         camera = render.camera(scene, settings)
+        # the view's junction gather reads geometry alone: computed on idle cores meanwhile
+        ahead = render.gather_ahead(scene, light, settings, camera, ex)
         taken = state is not None and light.irradiance is state.irradiance
         begin = store.begin(mesh.hierarchy, mesh.reflectance, solve.start(light),
                             None if taken else direct.state_of(light))
@@ -108,7 +110,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         bar.close()
         seconds["solve"], t = time.perf_counter() - t, time.perf_counter()
         beat.say(f"rendering {camera.width} x {camera.height}")
-        image = render.image(scene, light, sol, settings, ex, camera)             # 4
+        image = render.image(scene, light, sol, settings, ex, camera, ahead)      # 4
         store.finish(image)
         seconds["render"], t = time.perf_counter() - t, time.perf_counter()
         memory = ex.memory()

@@ -14,6 +14,9 @@ Both executors expose the same calls, so the pipeline is written once:
   :func:`daskrad.direct.vertex_light`, one per vertex range, in order;
 - ``gather(gather_ctx, ranges)`` → list of the junction gather's operator rows
   (:func:`daskrad.render.gather_vertices`), one per range of junction vertices, in order;
+- ``ahead(kind, plan, context_of, ranges_of)`` (in-process only) → :class:`Ahead`: ``kind``
+  tasks that read geometry alone, started on the cores the solve leaves idle
+  (``"gather"``: the junction gather's operator rows, :func:`daskrad.render.gather_ahead`);
 - ``memory()`` → peak memory of the client and of every worker, and the row caches' use;
 - ``publish(key, value)``: progress for the dashboard (a no-op here);
 - ``close()``.
@@ -92,6 +95,7 @@ class InProcess:
         self._ahead: dict[int, Future] = {}    # patch id -> its row computed ahead
         self._busy = 0                          # tasks submitted and not finished
         self.prefetched = 0                     # rows started ahead (prefetch)
+        self._started: list[Ahead] = []         # work started ahead (ahead), stopped by close
 
     def use_store(self, store) -> None:
         """In-process tasks read their contexts from memory: no store needed."""
@@ -135,17 +139,29 @@ class InProcess:
             self.prefetched += 1
 
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[tuple[np.ndarray, dict]]:
-        return self._map(lambda t: render.render_tile_stats(ctx, t[0], t[1]), tiles)
+        return self.map(lambda t: render.render_tile_stats(ctx, t[0], t[1]), tiles)
 
     def direct(self, ctx, ranges: list[tuple[int, int]]) -> list[tuple]:
         """Direct light at the vertex ranges (:func:`daskrad.direct.vertex_light`)."""
-        return self._map(lambda r: direct.vertex_light(ctx, r[0], r[1]), ranges)
+        return self.map(lambda r: direct.vertex_light(ctx, r[0], r[1]), ranges)
 
     def gather(self, ctx: render.GatherContext, ranges: list[tuple[int, int]]
                ) -> list[render.GatherOperator]:
         """The junction gather's operator rows over ranges of its vertices
         (:func:`daskrad.render.gather_vertices`)."""
-        return self._map(lambda r: render.gather_vertices(ctx, r[0], r[1]), ranges)
+        return self.map(lambda r: render.gather_vertices(ctx, r[0], r[1]), ranges)
+
+    def ahead(self, kind: str, plan, context_of, ranges_of) -> Ahead | None:
+        """Start the ``kind`` tasks (``"gather"``: :func:`daskrad.render.gather_vertices`)
+        ``task(context_of(p), a, b)`` over ``ranges_of(p)`` of ``p = plan()`` on a thread that
+        runs only where a core is idle (:class:`Ahead`); ``result()`` runs what it has not
+        done on this executor's threads. None with one thread: it was asked to take one
+        core."""
+        task = {"gather": render.gather_vertices}[kind]
+        if self.threads == 1:
+            return None
+        self._started.append(Ahead(plan, context_of, ranges_of, task, self.map))
+        return self._started[-1]
 
     def memory(self) -> dict:
         """Peak memory of this process (MiB) and the row cache's use and budget (no
@@ -156,6 +172,9 @@ class InProcess:
         """No dashboard in-process: progress shows in the terminal only."""
 
     def close(self) -> None:
+        for work in self._started:
+            work.stop()
+        self._started = []
         with self._lock:
             pool, self._pool = self._pool, None
         if pool is not None:
@@ -176,7 +195,119 @@ class InProcess:
         with self._lock:
             self._busy -= 1
 
-    def _map(self, fn, items: list) -> list:
+    def map(self, fn, items: list) -> list:
+        """``[fn(item) for item in items]`` on this executor's threads, in order."""
         if self.threads == 1 or len(items) < 2:
             return [fn(item) for item in items]
         return [f.result() for f in [self._submit(fn, item) for item in items]]
+
+
+def idle_priority() -> bool:
+    """Let the calling thread run only where a core would otherwise be idle (Linux's
+    ``SCHED_IDLE``, which any process may ask for itself; elsewhere the lowest ``nice`` a
+    thread can take is not per thread, and nothing changes). Whether it was done."""
+    policy = getattr(os, "SCHED_IDLE", None)
+    if policy is None:
+        return False
+    try:
+        os.sched_setscheduler(0, policy, os.sched_param(0))    # 0: this thread
+    except OSError:
+        return False
+    return True
+
+
+class Ahead:
+    """Geometry-only work computed on an idle core while the solve runs
+    (:meth:`InProcess.ahead`; the junction gather's operator, whose tasks read the mesh and
+    never a radiance).
+
+    A thread computes ``p = plan()`` at once, then takes the ranges ``ranges_of(p)`` one at a
+    time in order and runs ``task(context_of(p), a, b)`` on each at idle priority
+    (:func:`idle_priority`): it takes a core only when the solve, the store's writes and
+    every other thread of the machine leave one free. :meth:`result` stops it and runs the
+    ranges it has not finished through ``run`` (the executor's threads, at the normal
+    priority), one still running included: every task is a pure function of its range, so
+    computing one twice gives the same bits, and the render never waits on a thread the
+    machine may be starving. The results are those of running every range through ``run``.
+    """
+
+    def __init__(self, plan, context_of, ranges_of, task, run):
+        self._fns = (context_of, task, run)
+        self._lock = threading.Lock()
+        self._planned = threading.Event()
+        self._plan = None
+        self._error: BaseException | None = None
+        self._ranges: list = []
+        self._next = 0                      # the next range no thread has taken
+        self._done: dict[int, object] = {}  # range index -> its task's result
+        self._stopped = False
+        self._thread = threading.Thread(target=self._work, args=(plan, ranges_of),
+                                        name="daskrad-ahead", daemon=True)
+        self._thread.start()
+
+    def _work(self, plan, ranges_of) -> None:
+        try:
+            p = plan()
+            ranges = list(ranges_of(p)) if p is not None else []
+        except BaseException as err:  # noqa: BLE001 - raised again where the plan is read
+            self._error = err
+            self._planned.set()
+            return
+        self._plan, self._ranges = p, ranges
+        self._planned.set()
+        if not ranges:
+            return
+        context_of, task, _ = self._fns
+        ctx = context_of(p)
+        idle_priority()
+        while True:
+            with self._lock:
+                if self._stopped or self._next >= len(ranges):
+                    return
+                i = self._next
+                self._next += 1
+            try:
+                value = task(ctx, *ranges[i])
+            except BaseException:  # noqa: BLE001 - result() runs the range again and
+                return             # meets the error in the caller's thread
+            with self._lock:
+                self._done[i] = value
+
+    def plan(self):
+        """``plan()``'s value (waiting for it; its error raised here)."""
+        self._planned.wait()
+        if self._error is not None:
+            raise self._error
+        return self._plan
+
+    def result(self) -> list:
+        """Every range's result, in order: those the idle thread finished, the others run
+        now on the executor's threads."""
+        p = self.plan()
+        self.stop()
+        with self._lock:
+            done = dict(self._done)
+        missing = [i for i in range(len(self._ranges)) if i not in done]
+        if missing:
+            context_of, task, run_on = self._fns
+            ctx = context_of(p)
+            ranges = self._ranges
+            for i, value in zip(missing, run_on(lambda i: task(ctx, *ranges[i]), missing),
+                                strict=True):
+                done[i] = value
+        return [done[i] for i in range(len(self._ranges))]
+
+    def stop(self) -> None:
+        """Take no more ranges (one running finishes on its own)."""
+        with self._lock:
+            self._stopped = True
+
+    def progress(self) -> tuple[int, int]:
+        """``(ranges finished by the idle thread, ranges)`` (0 of 0 before the plan)."""
+        with self._lock:
+            return len(self._done), len(self._ranges)
+
+    def join(self, timeout: float | None = None) -> bool:
+        """Wait until the idle thread ends (every range done, or stopped); whether it has."""
+        self._thread.join(timeout)
+        return not self._thread.is_alive()

@@ -1,0 +1,178 @@
+"""The view's junction gather computed ahead, on a core the solve leaves idle
+(:func:`daskrad.render.gather_ahead`, :class:`daskrad.distributed.executor.Ahead`): the
+image is the same bits whether the gather was computed ahead (all of it, part of it, none)
+or in the render, and the render never waits on the idle thread."""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from daskrad import direct, render, solve
+from daskrad.distributed.executor import Ahead, InProcess
+from daskrad.preprocess import preprocess
+from daskrad.scene import load_scene
+from daskrad.settings import Settings
+from tests.helpers import SCENES
+
+#: A Cornell box with junction vertices to gather, small enough for a test.
+SMALL = Settings(patch_size=150.0, element_size=75.0, resolution=64, tolerance=1e-2,
+                 width=32, height=32, spp=2, workers=0, batch=8)
+
+
+@pytest.fixture(scope="module")
+def solved():
+    """The Cornell box lit and solved at :data:`SMALL` on 2 threads."""
+    scene = load_scene(SCENES / "cornell_box.obj")
+    ex = InProcess(threads=2)
+    try:
+        light = direct.light(scene, preprocess(scene, SMALL), SMALL, ex)
+        sol = solve.radiosity(light, SMALL, ex)
+        plain = render.image(scene, light, sol, SMALL, ex)
+    finally:
+        ex.close()
+    return scene, light, sol, plain
+
+
+def _image(solved, finish: bool, threads: int = 2, cam=None):
+    """The image of ``solved`` with its gather started ahead on ``threads`` threads; the
+    render asks for it once the idle thread is done (``finish``) or at once."""
+    scene, light, sol, _ = solved
+    ex = InProcess(threads=threads)
+    try:
+        cam = render.camera(scene, SMALL) if cam is None else cam
+        ahead = render.gather_ahead(scene, light, SMALL, cam, ex)
+        if finish and ahead is not None:
+            assert ahead.join(timeout=60)
+        return ahead, render.image(scene, light, sol, SMALL, ex, cam, ahead)
+    finally:
+        ex.close()
+
+
+@pytest.mark.parametrize("finish", [True, False], ids=["all ahead", "asked at once"])
+def test_the_gather_computed_ahead_gives_the_render_the_same_bits(solved, finish):
+    plain = solved[3]
+    ahead, image = _image(solved, finish)
+    assert ahead is not None
+    plan = ahead.plan()
+    assert len(plan.vertices) > 0 and plan.context is not None     # a gather to compute
+    done, ranges = ahead.progress()
+    assert ranges > 1
+    if finish:   # every range was the idle thread's
+        assert done == ranges
+    np.testing.assert_array_equal(image.pixels, plain.pixels)
+    # and the gather changed the image: without it the same bits would prove nothing
+    no_gather = render.pixels(replace(plain.context, junctions=None))
+    assert not np.array_equal(no_gather, plain.pixels)
+
+
+def test_a_plan_for_another_camera_is_not_taken(solved):
+    scene, light, sol, plain = solved
+    cam = render.camera(scene, SMALL)
+    ex = InProcess(threads=2)
+    try:
+        ahead = render.gather_ahead(scene, light, SMALL, replace(cam), ex)   # another object
+        assert not ahead.plan().fits(render.context(scene, light, sol, SMALL, cam))
+        image = render.image(scene, light, sol, SMALL, ex, cam, ahead)
+    finally:
+        ex.close()
+    np.testing.assert_array_equal(image.pixels, plain.pixels)
+
+
+def test_one_thread_starts_nothing_ahead(solved):
+    scene, light, _, _ = solved
+    ex = InProcess(threads=1)
+    try:
+        assert render.gather_ahead(scene, light, SMALL, render.camera(scene, SMALL), ex) is None
+    finally:
+        ex.close()
+
+
+def _blocking_task(release: threading.Event, started: threading.Event, on: str):
+    """A task returning its range, which blocks in thread ``on`` until ``release``."""
+    def task(ctx, a, b):
+        if threading.current_thread().name == on:
+            started.set()
+            assert release.wait(timeout=60)
+        return (ctx, a, b)
+    return task
+
+
+def test_the_result_never_waits_for_the_idle_thread():
+    release, started = threading.Event(), threading.Event()
+    ranges = [(0, 3), (3, 5), (5, 9)]
+    ex = InProcess(threads=2)
+    try:
+        work = Ahead(lambda: "plan", lambda p: p + "-ctx", lambda p: ranges,
+                     _blocking_task(release, started, "daskrad-ahead"), ex.map)
+        assert started.wait(timeout=60)        # the idle thread is inside the first range
+        # every range, in order, the blocked one computed again on the pool
+        assert work.result() == [("plan-ctx", a, b) for a, b in ranges]
+        assert work.plan() == "plan"
+    finally:
+        release.set()
+        ex.close()
+    assert work.join(timeout=60)
+    assert work.progress() in ((0, 3), (1, 3))      # it took no range after the result
+
+
+def test_a_plan_that_fails_raises_where_it_is_read():
+    def plan():
+        raise ValueError("no plan")
+
+    work = Ahead(plan, lambda p: p, lambda p: [(0, 1)], lambda c, a, b: a, lambda f, x: [])
+    with pytest.raises(ValueError, match="no plan"):
+        work.plan()
+    with pytest.raises(ValueError, match="no plan"):
+        work.result()
+
+
+def test_stop_ends_the_work_ahead_after_the_range_it_is_in():
+    release, started = threading.Event(), threading.Event()
+    ex = InProcess(threads=2)
+    try:
+        work = Ahead(lambda: 0, lambda p: p, lambda p: [(i, i + 1) for i in range(50)],
+                     _blocking_task(release, started, "daskrad-ahead"), ex.map)
+        assert started.wait(timeout=60)
+        work.stop()
+        release.set()
+        assert work.join(timeout=60)
+        assert work.progress() == (1, 50)        # the range it was in, then no other
+    finally:
+        release.set()
+        ex.close()
+
+
+def test_closing_the_executor_stops_its_work_ahead(monkeypatch):
+    release, started = threading.Event(), threading.Event()
+    monkeypatch.setattr(render, "gather_vertices",
+                        _blocking_task(release, started, "daskrad-ahead"))
+    ex = InProcess(threads=2)
+    try:
+        work = ex.ahead("gather", lambda: 0, lambda p: p,
+                        lambda p: [(i, i + 1) for i in range(50)])
+        assert started.wait(timeout=60)
+        ex.close()
+        release.set()
+        assert work.join(timeout=60)
+        assert work.progress() == (1, 50)        # the range it was in, then no other
+    finally:
+        release.set()
+        ex.close()
+
+
+
+def test_a_cluster_starts_nothing_ahead(solved, cluster_client, tmp_path):
+    # measured not to pay on a cluster (render.gather_ahead): the render gathers
+    from daskrad.distributed.dask_executor import DaskExecutor
+    from daskrad.distributed.store import Store
+
+    scene, light, _, _ = solved
+    ex = DaskExecutor(cluster_client, Store(tmp_path / "a.zarr", SMALL).open())
+    try:
+        assert render.gather_ahead(scene, light, SMALL, render.camera(scene, SMALL), ex) is None
+    finally:
+        ex.close()
