@@ -3,9 +3,9 @@
 :data:`daskrad.render.GATHER_METHODS`: ``"rays"`` casts ``GATHER_SIDE²`` stratified, jittered,
 cosine-distributed rays from each junction vertex, each walking the polygons' grid;
 ``"disc"`` projects every polygon onto the base of the vertex's hemisphere (Doi's item
-buffer, ``DISC_SIDE × DISC_SIDE``), each disc pixel a cosine-distributed direction. Both give
-the same operator (:class:`daskrad.render.GatherOperator`), so both are measured on the same
-junction vertices, in one run:
+buffer, ``R × R``, :func:`daskrad.render.gather_side`), each disc pixel a cosine-distributed
+direction. Both give the same operator (:class:`daskrad.render.GatherOperator`), so both are
+measured on the same junction vertices, in one run:
 
 - **rows**: the operator of every junction vertex of the view (:func:`daskrad.render.
   for_view`'s own choice of vertices, caught through the executor's ``gather`` call), one
@@ -80,7 +80,10 @@ class _Catch(InProcess):
 
 def _arm(gctx: render.GatherContext, method: str, side: int | None = None,
          shift: int = 0) -> render.GatherContext:
-    side = side or (render.DISC_SIDE if method == "disc" else render.GATHER_SIDE)
+    # the run's own side for its method; the other method at its default
+    own = render.gather_method(gctx.polygons) == method
+    side = side or (gctx.side if own else render.DISC_SIDE if method == "disc"
+                    else render.GATHER_SIDE)
     return dataclasses.replace(gctx, method=method, side=side, seeds=gctx.seeds + shift)
 
 
@@ -252,7 +255,8 @@ def main(argv: list[str] | None = None) -> dict:
               f"{r['speedup']:>7.2f}  {r['same_bits']}")
     result = {"repeat": args.repeat, "reference_side": REFERENCE_SIDE,
               "reference_rays": REFERENCE_RAYS,
-              "disc_side": render.DISC_SIDE, "gather_side": render.GATHER_SIDE,
+              "disc_side": render.DISC_SIDE, "disc_side_simple": render.DISC_SIDE_SIMPLE,
+              "disc_simple": render.DISC_SIMPLE, "gather_side": render.GATHER_SIDE,
               "rows": table, "images": images, "ahead": aheads}
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "gather.json").write_text(json.dumps(result, indent=2))

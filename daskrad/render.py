@@ -51,7 +51,8 @@ TILE = 64
 
 @dataclass(frozen=True)
 class Junctions:
-    """What the junction gather of a view needs (:func:`for_view`, :func:`_junction_gather`).
+    """What the junction gather of a view needs (:func:`for_view`, :func:`plan_gather`,
+    :func:`_gather_change`).
 
     points, normals : (V, 3) float64
         Where each vertex is evaluated (1e-5 of the diagonal inside its polygon) and its normal.
@@ -1127,8 +1128,28 @@ JUNCTION_REACH = 1.0
 #: figures within 0.6 points of each other. The gather is ~3/4 of the Cornell box's render CPU.
 GATHER_SIDE = 24
 
-#: The disc's side: ~573 pixels on the disc, as many directions as ``GATHER_SIDE²`` rays.
+#: The disc's side: 577 pixels on the disc, as many directions as ``GATHER_SIDE²`` rays; and
+#: the side of a scene of at most :data:`DISC_SIMPLE` polygon triangles, 349 pixels. The
+#: directions are the lattice's, turned and shifted per vertex, not jittered rays, so in a
+#: simple scene fewer err less than the rays: per vertex, against the mean of a disc of side
+#: 100 and 64² rays (``bench_gather``'s reference), sides 27 / 23 / 21 / 19 / 17 give the
+#: Cornell box's 2,663 junction vertices 1.30 / 1.60 / 1.93 / 2.20 / 2.57 % RMS (worst 9.0 /
+#: 10.8 / 12.3 / 16.9 / 18.7 %) in 0.53 / 0.44 / 0.35 / 0.30 / 0.26 s, where 24² rays give
+#: 2.13 % (worst 17.2 %) in 1.41 s; the lit room 0.85 / 1.01 / 1.17 / 1.40 / 1.66 % against
+#: 1.26 %; the MGF cube (67 triangles) 1.02 % at 27 and 1.50 % at 21 against 1.73 %. A furnished
+#: room needs the finer disc: MGF office2 (741 triangles) 4.17 % at 27 but 5.98 % at 21,
+#: against the rays' 5.22 %. The images at 21 (``bench_shadows``, four seeds each, side 27 →
+#: 21): contact pixels of the sun-lit open box 4.34–4.47 → 4.44–4.54 %, of the point-lit
+#: closed box 2.15–2.16 → 2.17–2.22 % (rays: 4.52 %, 2.16–2.24 %), the closed box's worst
+#: contact row +5.3…+7.6 → +4.7…+8.0 % (rays −1.4…+10.6 %), the lit room's contact pixels
+#: 2.59–2.66 % both; the Cornell box at 128² against the path tracer 0.03793 → 0.03792 off
+#: the light.
 DISC_SIDE = 27
+DISC_SIDE_SIMPLE = 21
+#: The most polygon triangles of a scene whose disc has side :data:`DISC_SIDE_SIMPLE`: above
+#: the simple rooms measured (the cube's 67), far below the furnished office2's 741; no scene
+#: in between was measured.
+DISC_SIMPLE = 100
 #: The disc gathers for scenes of at most this many polygon triangles, the rays above: a
 #: vertex costs the disc ~150 µs plus ~0.56 µs a triangle it projects, the rays ~400–620 µs
 #: whatever the scene (the polygons' grid): equal near 800 (``bench_gather``: office2's 741
@@ -1147,6 +1168,15 @@ def gather_method(polygons: Grid | None) -> str:
     if polygons is not None and len(polygons.triangles) <= DISC_POLYGONS:
         return "disc"
     return "rays"
+
+
+def gather_side(polygons: Grid | None) -> int:
+    """The junction gather's side for a scene whose polygons are ``polygons``
+    (:func:`gather_method`): ``side²`` rays a vertex, or the disc's side ``R``, finer for a
+    scene of more than :data:`DISC_SIMPLE` polygon triangles."""
+    if gather_method(polygons) == "rays":
+        return GATHER_SIDE
+    return DISC_SIDE_SIMPLE if len(polygons.triangles) <= DISC_SIMPLE else DISC_SIDE
 
 
 #: Correction passes after the first gather: each gathers the change the previous pass made
@@ -1372,6 +1402,8 @@ def for_view(ctx: RenderContext, executor=None, ahead=None) -> RenderContext:
     the operator is geometry alone, so it is the one computed here, bit for bit."""
     plan = ahead.plan() if ahead is not None else None
     if plan is None or not plan.fits(ctx):
+        if ahead is not None:
+            ahead.stop()            # planned for another view: nothing more to compute
         plan, ahead = None, None
     ctx = with_locator(ctx, plan.locator if plan is not None else None)
     j = ctx.junctions
@@ -1398,9 +1430,10 @@ class GatherPlan(NamedTuple):
         The junction vertices gathered.
     context : GatherContext or None
         What their rows are computed with (None when ``n`` is 0).
-    grid : Grid, camera : Camera or None, spp : int
-        The element grid, camera and samples per pixel of the context it was planned for
-        (:meth:`fits`).
+    grid, occluders : Grid, camera : Camera or None, spp : int
+        The element and polygon grids, camera and samples per pixel of the context it was
+        planned for, ``junctions`` its :class:`Junctions`, ``constants`` the module's
+        settings that choose and gather the vertices (:meth:`fits`).
     locator : (T, 13) float64 or None
         That context's :attr:`RenderContext.locator`.
     """
@@ -1411,17 +1444,35 @@ class GatherPlan(NamedTuple):
     camera: Camera | None
     spp: int
     locator: np.ndarray | None
+    occluders: Grid | None
+    junctions: Junctions
+    constants: tuple
 
     def fits(self, ctx: RenderContext) -> bool:
-        """Whether this is the plan of ``ctx``'s view: the same mesh (its grid, the same
-        object) and the same camera object and samples per pixel."""
-        return ctx.grid is self.grid and ctx.camera is self.camera and ctx.spp == self.spp
+        """Whether this is the plan :func:`plan_gather` makes of ``ctx``: the same mesh and
+        polygons (the grids, the same objects), camera (the same object), samples per pixel,
+        junctions (equal: the points, normals, reach and what may be gathered) and module
+        settings."""
+        j, k = ctx.junctions, self.junctions
+        return (ctx.grid is self.grid and ctx.occluders is self.occluders
+                and ctx.camera is self.camera and ctx.spp == self.spp and j is not None
+                and self.constants == _plan_constants()
+                and (j.offset, j.reach, j.everywhere) == (k.offset, k.reach, k.everywhere)
+                and all(np.array_equal(getattr(j, f), getattr(k, f))
+                        for f in ("gatherable", "points", "normals", "exclude", "elem_verts")))
 
     def ranges(self, executor=None, batch: int | None = None) -> list[tuple[int, int]]:
         """Ranges of :attr:`vertices`, one a task (:func:`gather_batch`, or ``batch``
         vertices each)."""
         n = len(self.vertices)
         return direct.batches(0, n, batch or gather_batch(n, executor)) if n else []
+
+
+def _plan_constants() -> tuple:
+    """The module settings a :class:`GatherPlan` depends on (a test or a benchmark may
+    change them between a plan and its use)."""
+    return (GATHER_ALL, POLYGON_HITS, DISC_POLYGONS, DISC_SIDE, DISC_SIDE_SIMPLE, DISC_SIMPLE,
+            GATHER_SIDE, DISC_SAGITTA_PX)
 
 
 def plan_gather(ctx: RenderContext) -> GatherPlan | None:
@@ -1443,11 +1494,12 @@ def plan_gather(ctx: RenderContext) -> GatherPlan | None:
                              points=np.ascontiguousarray(j.points[idx]),
                              normals=np.ascontiguousarray(j.normals[idx]),
                              seeds=idx.astype(np.int64), offset=j.offset,
-                             side=DISC_SIDE if method == "disc" else GATHER_SIDE,
+                             side=gather_side(polygons),
                              polygons=polygons,
                              locator=ctx.locator if polygons is not None else None,
                              method=method)
-    return GatherPlan(idx, gctx, ctx.grid, ctx.camera, ctx.spp, ctx.locator)
+    return GatherPlan(idx, gctx, ctx.grid, ctx.camera, ctx.spp, ctx.locator, ctx.occluders, j,
+                      _plan_constants())
 
 
 def gather_operator_of(plan: GatherPlan, executor=None) -> GatherOperator | None:
@@ -1481,6 +1533,10 @@ class GatherAhead:
     def progress(self) -> tuple[int, int]:
         """``(ranges computed ahead, ranges)`` so far."""
         return self._handle.progress()
+
+    def stop(self) -> None:
+        """Compute nothing more ahead."""
+        self._handle.stop()
 
     def join(self, timeout: float | None = None) -> bool:
         """Wait until nothing more is computed ahead; whether that is so."""

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from daskrad import direct, render, solve
+from daskrad.distributed import executor
 from daskrad.distributed.executor import Ahead, InProcess
 from daskrad.preprocess import preprocess
 from daskrad.scene import load_scene
@@ -37,28 +38,38 @@ def solved():
     return scene, light, sol, plain
 
 
-def _image(solved, finish: bool, threads: int = 2, cam=None):
+def _image(solved, finish: bool, monkeypatch, threads: int = 2):
     """The image of ``solved`` with its gather started ahead on ``threads`` threads; the
-    render asks for it once the idle thread is done (``finish``) or at once."""
+    render asks for it once the idle thread is done (``finish``: then the render may not
+    compute any of it) or at once. The thread keeps the normal priority (a test on a busy
+    machine must not wait for idle cores)."""
     scene, light, sol, _ = solved
+    monkeypatch.setattr(executor, "idle_priority", lambda: True)
     ex = InProcess(threads=threads)
     try:
-        cam = render.camera(scene, SMALL) if cam is None else cam
+        cam = render.camera(scene, SMALL)
         ahead = render.gather_ahead(scene, light, SMALL, cam, ex)
         if finish and ahead is not None:
             assert ahead.join(timeout=60)
+
+            def refused(*args, **kwargs):
+                raise AssertionError("the render gathered again")
+            monkeypatch.setattr(render, "gather_operator_of", refused)
+            monkeypatch.setattr(render, "plan_gather", refused)
         return ahead, render.image(scene, light, sol, SMALL, ex, cam, ahead)
     finally:
         ex.close()
 
 
 @pytest.mark.parametrize("finish", [True, False], ids=["all ahead", "asked at once"])
-def test_the_gather_computed_ahead_gives_the_render_the_same_bits(solved, finish):
+def test_the_gather_computed_ahead_gives_the_render_the_same_bits(solved, finish,
+                                                                   monkeypatch):
     plain = solved[3]
-    ahead, image = _image(solved, finish)
+    ahead, image = _image(solved, finish, monkeypatch)
     assert ahead is not None
     plan = ahead.plan()
     assert len(plan.vertices) > 0 and plan.context is not None     # a gather to compute
+    assert plan.fits(image.context)                                 # and it was taken
     done, ranges = ahead.progress()
     assert ranges > 1
     if finish:   # every range was the idle thread's
@@ -80,6 +91,24 @@ def test_a_plan_for_another_camera_is_not_taken(solved):
     finally:
         ex.close()
     np.testing.assert_array_equal(image.pixels, plain.pixels)
+
+
+def test_a_plan_for_other_junctions_is_not_taken(solved):
+    # the same mesh and camera, but junctions reaching further (another element size): the
+    # plan made with the first settings would gather other vertices
+    scene, light, sol, _ = solved
+    wider = SMALL.replace(element_size=20.0)
+    cam = render.camera(scene, SMALL)
+    ex = InProcess(threads=2)
+    try:
+        ahead = render.gather_ahead(scene, light, SMALL, cam, ex)
+        own = render.image(scene, light, sol, wider, ex, cam)
+        assert not ahead.plan().fits(own.context)
+        image = render.image(scene, light, sol, wider, ex, cam, ahead)
+    finally:
+        ex.close()
+    assert len(render.plan_gather(own.context).vertices) != len(ahead.plan().vertices)
+    np.testing.assert_array_equal(image.pixels, own.pixels)
 
 
 def test_one_thread_starts_nothing_ahead(solved):
@@ -105,12 +134,17 @@ def test_the_result_never_waits_for_the_idle_thread():
     release, started = threading.Event(), threading.Event()
     ranges = [(0, 3), (3, 5), (5, 9)]
     ex = InProcess(threads=2)
+    got = []
     try:
         work = Ahead(lambda: "plan", lambda p: p + "-ctx", lambda p: ranges,
                      _blocking_task(release, started, "daskrad-ahead"), ex.map)
         assert started.wait(timeout=60)        # the idle thread is inside the first range
+        asking = threading.Thread(target=lambda: got.append(work.result()))
+        asking.start()
+        asking.join(timeout=20)                # while the idle thread is still blocked
+        assert not release.is_set() and not asking.is_alive()
         # every range, in order, the blocked one computed again on the pool
-        assert work.result() == [("plan-ctx", a, b) for a, b in ranges]
+        assert got == [[("plan-ctx", a, b) for a, b in ranges]]
         assert work.plan() == "plan"
     finally:
         release.set()

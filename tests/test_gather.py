@@ -212,3 +212,8 @@ def test_the_gather_method_follows_the_polygon_count(rng):
     assert render.gather_method(many) == "rays"
     assert render.gather_method(None) == "rays"      # no polygons: the elements are walked
     assert set(render.GATHER_METHODS) == {"rays", "disc"}
+    # the disc is finer for a scene of more polygons (a furnished room's small objects)
+    simple = build_grid(rng.random((render.DISC_SIMPLE, 3, 3)))
+    assert render.gather_side(simple) == render.DISC_SIDE_SIMPLE < render.DISC_SIDE
+    assert render.gather_side(few) == render.DISC_SIDE
+    assert render.gather_side(many) == render.gather_side(None) == render.GATHER_SIDE

@@ -221,14 +221,22 @@ class Ahead:
     (:meth:`InProcess.ahead`; the junction gather's operator, whose tasks read the mesh and
     never a radiance).
 
-    A thread computes ``p = plan()`` at once, then takes the ranges ``ranges_of(p)`` one at a
-    time in order and runs ``task(context_of(p), a, b)`` on each at idle priority
-    (:func:`idle_priority`): it takes a core only when the solve, the store's writes and
-    every other thread of the machine leave one free. :meth:`result` stops it and runs the
-    ranges it has not finished through ``run`` (the executor's threads, at the normal
-    priority), one still running included: every task is a pure function of its range, so
-    computing one twice gives the same bits, and the render never waits on a thread the
-    machine may be starving. The results are those of running every range through ``run``.
+    A thread computes ``p = plan()`` at once (at the normal priority: the render waits for
+    the plan, :meth:`plan`), then takes the ranges ``ranges_of(p)`` one at a time in order
+    and runs ``task(context_of(p), a, b)`` on each. The first range runs at the normal
+    priority too: its call loads (or compiles) the task's kernel under numba's compiler
+    lock, which a starved thread must not hold while the render's threads wait on it; the
+    others at idle priority (:func:`idle_priority`), taking a core only when the solve, the
+    store's writes and every other thread of the machine leave one free. Where a thread
+    cannot be given that priority (not Linux), it stops after the first range.
+
+    :meth:`result` stops it and runs the ranges it has not finished through ``run`` (the
+    executor's threads, at the normal priority), one still running included: every task is
+    a pure function of its range, so computing one twice gives the same bits, and the render
+    never waits on the idle thread. The results are those of running every range through
+    ``run``. What the idle thread may still hold while it is starved is the GIL for the
+    microseconds between two kernel calls: a thread that wants it then waits until the
+    scheduler runs the idle thread again, at the latest when a core falls idle.
     """
 
     def __init__(self, plan, context_of, ranges_of, task, run):
@@ -249,17 +257,15 @@ class Ahead:
         try:
             p = plan()
             ranges = list(ranges_of(p)) if p is not None else []
+            context_of, task, _ = self._fns
+            ctx = context_of(p) if ranges else None
         except BaseException as err:  # noqa: BLE001 - raised again where the plan is read
             self._error = err
             self._planned.set()
             return
         self._plan, self._ranges = p, ranges
         self._planned.set()
-        if not ranges:
-            return
-        context_of, task, _ = self._fns
-        ctx = context_of(p)
-        idle_priority()
+        first = True
         while True:
             with self._lock:
                 if self._stopped or self._next >= len(ranges):
@@ -272,6 +278,10 @@ class Ahead:
                 return             # meets the error in the caller's thread
             with self._lock:
                 self._done[i] = value
+            if first:
+                first = False
+                if not idle_priority():     # no idle priority: the render does the rest
+                    return
 
     def plan(self):
         """``plan()``'s value (waiting for it; its error raised here)."""
