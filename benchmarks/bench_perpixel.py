@@ -35,10 +35,15 @@ caps the solve) at ``--size`` pixels, two comparisons, alternated ``--repeat`` t
 - **shadow cache** (:data:`daskrad.render.SHADOW_CACHE`): the same tiles (all of the above)
   when each area light's shadow rays first try the triangle that blocked its last ray,
   against walking the grid for every ray. Both give the same image (checked bit for bit).
+- **shading kernels** (:func:`daskrad.kernels.shade.shade_hits`, :func:`~daskrad.kernels.
+  shade.gouraud`): the same tiles (all of the above) when the Gouraud shading of the hits
+  runs in one kernel pass, against the NumPy expressions it replaced (kept here as the
+  reference arm), on one thread and on two (NumPy's fancy indexing holds the GIL). Both give
+  the same image (checked bit for bit).
 
-Seconds are wall time in this process, one thread. ``python -m benchmarks.bench_perpixel
-[--scene PATH --config TOML] [--size W H] [--shots N] [--repeat N]``; writes
-``benchmarks/results/perpixel.json``.
+Seconds are wall time in this process, one thread (but where said). ``python -m
+benchmarks.bench_perpixel [--scene PATH --config TOML] [--size W H] [--shots N] [--repeat N]
+[--json NAME]``; writes ``benchmarks/results/perpixel.json`` (or ``NAME`` there).
 """
 
 from __future__ import annotations
@@ -179,6 +184,7 @@ def measure(path: Path, config: Path | None, size: tuple[int, int], shots: int,
         **_lambert(viewed, repeat),
         **_arms(viewed, "POLYGON_OCCLUDERS", "occluders", repeat),
         **_arms(viewed, "SHADOW_CACHE", "cache", repeat),
+        **_shading(viewed, repeat),
     }
 
 
@@ -266,6 +272,60 @@ def _arms(ctx: render.RenderContext, flag: str, name: str, repeat: int) -> dict:
                 (change / np.maximum(a.max(axis=2), 1e-300)).max())}
 
 
+def _numpy_gouraud(values, tri_verts, tri, u, v):
+    """The NumPy Gouraud shading :func:`daskrad.kernels.shade.gouraud` replaced."""
+    c = tri_verts[tri]
+    uh, vh = u[:, None], v[:, None]
+    return (1.0 - uh - vh) * values[c[:, 0]] + uh * values[c[:, 1]] + vh * values[c[:, 2]]
+
+
+def _numpy_shade_hits(values, tri_verts, tri_element, elem_normal, directions, tri, u, v):
+    """The NumPy shading of hits :func:`daskrad.kernels.shade.shade_hits` replaced."""
+    n = len(tri)
+    out, front = np.zeros((n, 3)), np.zeros(n, bool)
+    hit = tri >= 0
+    if hit.any():
+        th = tri[hit]
+        f = np.einsum("ij,ij->i", directions[hit], elem_normal[tri_element[th]]) < 0.0
+        out[hit] = np.where(f[:, None], _numpy_gouraud(values, tri_verts, th, u[hit], v[hit]),
+                            0.0)
+        front[hit] = f
+    return out, front
+
+
+def _shading(ctx: render.RenderContext, repeat: int) -> dict:
+    """The tiles of ``ctx`` with the shading kernels and with the NumPy they replaced,
+    alternated ``repeat`` times, on one thread and on two."""
+    arms = {"numpy": (_numpy_shade_hits, _numpy_gouraud),
+            "kernels": (render.shade_hits, render.gouraud)}
+    seconds: dict = {(a, t): [] for a in arms for t in (1, 2)}
+    images = {}
+    ex = InProcess(threads=2)
+    try:
+        for k in range(repeat):
+            for arm in (list(arms) if k % 2 == 0 else list(arms)[::-1]):
+                render.shade_hits, render.gouraud = arms[arm]
+                try:
+                    for threads in (1, 2):
+                        t = time.perf_counter()
+                        images[arm, threads] = (render.render(ctx) if threads == 1
+                                                else render.pixels(ctx, ex))
+                        seconds[arm, threads].append(time.perf_counter() - t)
+                finally:
+                    render.shade_hits, render.gouraud = arms["kernels"]
+    finally:
+        ex.close()
+    med = {k: float(np.median(v)) for k, v in seconds.items()}
+    return {"tiles_numpy_shading_s": med["numpy", 1], "tiles_shading_kernels_s": med["kernels", 1],
+            "shading_speedup": med["numpy", 1] / med["kernels", 1],
+            "tiles_numpy_shading_2threads_s": med["numpy", 2],
+            "tiles_shading_kernels_2threads_s": med["kernels", 2],
+            "shading_speedup_2threads": med["numpy", 2] / med["kernels", 2],
+            "shading_same_bits": bool(all(np.array_equal(images["numpy", t],
+                                                         images["kernels", t])
+                                          for t in (1, 2)))}
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_perpixel")
     parser.add_argument("--scene", type=Path, action="append", default=[])
@@ -274,6 +334,8 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--size", type=int, nargs=2, default=(192, 144))
     parser.add_argument("--shots", type=int, default=352)
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--json", default="perpixel.json",
+                        help="the results file's name in benchmarks/results")
     args = parser.parse_args([] if argv is None else argv)
     configs = args.config + [None] * (len(args.scene) - len(args.config))
     rows = [measure(CORNELL, None, tuple(args.size), args.shots, args.repeat)]
@@ -323,8 +385,16 @@ def main(argv: list[str] | None = None) -> dict:
                   f"{r['occluders_change_largest_relative']:>9.1e}   "
                   f"{r['tiles_cache_off_s']:>9.2f}{r['tiles_cache_on_s']:>7.2f}"
                   f"{r['cache_speedup']:>6.2f}  {r['cache_same_bits']}")
+    print(f"\n{'shading':<18}{'numpy':>8}{'kernels':>8}{'x':>6}   {'2 threads':>9}"
+          f"{'kernels':>8}{'x':>6}  same bits")
+    for r in rows:
+        print(f"{r['scene']:<18}{r['tiles_numpy_shading_s']:>8.2f}"
+              f"{r['tiles_shading_kernels_s']:>8.2f}{r['shading_speedup']:>6.2f}   "
+              f"{r['tiles_numpy_shading_2threads_s']:>9.2f}"
+              f"{r['tiles_shading_kernels_2threads_s']:>8.2f}"
+              f"{r['shading_speedup_2threads']:>6.2f}  {r['shading_same_bits']}")
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "perpixel.json").write_text(json.dumps(rows, indent=2) + "\n")
+    (RESULTS / args.json).write_text(json.dumps(rows, indent=2) + "\n")
     return {"perpixel": rows}
 
 

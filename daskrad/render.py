@@ -36,7 +36,7 @@ from daskrad.kernels.grid import (
     located_triangles,
     locator,
 )
-from daskrad.kernels.shade import direct_at_hits
+from daskrad.kernels.shade import direct_at_hits, gouraud, shade_hits
 from daskrad.kernels.unshadowed import unshadowed_elements
 from daskrad.mesh import default_sizes, vertex_average
 from daskrad.mesh.refine import TVertices, resolve_tvertices
@@ -330,18 +330,11 @@ def shade(ctx: RenderContext, origins: np.ndarray, directions: np.ndarray) -> np
 
 def _shade(ctx: RenderContext, origins: np.ndarray, directions: np.ndarray):
     """:func:`shade` and the hits: ``(L, hit (n,) bool, t, tri, u, v, front (h,) bool)``."""
-    n = len(origins)
     t, tri, u, v = _closest(ctx, origins, directions)
-    out = np.zeros((n, 3))
     hit = tri >= 0
-    if not hit.any():
-        return out, hit, t, tri, u, v, np.zeros(0, bool)
-    tri_h = tri[hit]
-    elem = ctx.tri_element[tri_h]
-    front = np.einsum("ij,ij->i", directions[hit], ctx.elem_normal[elem]) < 0.0
-    L = _gouraud(ctx.vertex_radiance, ctx.tri_verts[tri_h], u[hit], v[hit])
-    out[hit] = np.where(front[:, None], L, 0.0)
-    return out, hit, t, tri, u, v, front
+    out, front = shade_hits(ctx.vertex_radiance, ctx.tri_verts, ctx.tri_element,
+                            ctx.elem_normal, np.ascontiguousarray(directions), tri, u, v)
+    return out, hit, t, tri, u, v, front[hit]
 
 
 def _closest(ctx: RenderContext, origins: np.ndarray, directions: np.ndarray):
@@ -380,12 +373,6 @@ def with_locator(ctx: RenderContext, known: np.ndarray | None = None) -> RenderC
     if not POLYGON_HITS or ctx.occluders is None or ctx.locator is not None:
         return ctx
     return replace(ctx, locator=known if known is not None else locator(ctx.grid.triangles))
-
-
-def _gouraud(values: np.ndarray, corners: np.ndarray, u: np.ndarray, v: np.ndarray):
-    uh, vh = u[:, None], v[:, None]
-    return ((1.0 - uh - vh) * values[corners[:, 0]] + uh * values[corners[:, 1]]
-            + vh * values[corners[:, 2]])
 
 
 def perpixel_elements(elem_verts: np.ndarray, vertex_direct: np.ndarray,
@@ -582,7 +569,7 @@ def _radiance(ctx: RenderContext, o: np.ndarray, d: np.ndarray, seeds: np.ndarra
                 np.ascontiguousarray(-d[a]), np.ascontiguousarray(seeds[a]),
                 np.zeros((len(a), 3)), np.zeros(len(a)), float(hard.offset), *hard.light_args,
                 int(hard.samples), np.zeros((len(a), len(hard.emitter_corners)), np.int8))
-            L[a] = (_gouraud(ctx.vertex_soft, ctx.tri_verts[tri[a]], u[a], v[a])
+            L[a] = (gouraud(ctx.vertex_soft, ctx.tri_verts, tri[a], u[a], v[a])
                     + ctx.elem_reflectance[e] * H / math.pi)
             stats["hard"] += int(sel.sum())
     if lights is not None and ctx.elem_perpixel is not None:
@@ -600,7 +587,7 @@ def _radiance(ctx: RenderContext, o: np.ndarray, d: np.ndarray, seeds: np.ndarra
             if ppw.any():
                 a = w[ppw]
                 e = ew[ppw]
-                L[a] = (_gouraud(ctx.vertex_indirect, ctx.tri_verts[tri[a]], u[a], v[a])
+                L[a] = (gouraud(ctx.vertex_indirect, ctx.tri_verts, tri[a], u[a], v[a])
                         + ctx.elem_emission[e] + ctx.elem_reflectance[e] * H[ppw] / math.pi)
             spw = sp[work]
             L[w[spw]] += S[spw]

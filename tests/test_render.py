@@ -254,3 +254,34 @@ def test_sample_positions_are_stratified_and_centred_for_any_count():
             for axis in (0, 1):
                 assert sorted(np.round(off[:, axis] * n - 0.5).astype(int)) == list(range(n))
         np.testing.assert_allclose(off.mean(axis=0), 0.5, atol=1e-12)
+
+
+def test_the_shading_kernels_interpolate_as_gouraud_bit_for_bit(rng):
+    # shade_hits writes gouraud's body out again (one pass over the rays): both are held to
+    # Gouraud's formula, summed in its order, and shade_hits to one-sidedness
+    from daskrad.kernels.shade import gouraud, shade_hits
+
+    n_tri, n_vert, n = 40, 30, 500
+    values = rng.random((n_vert, 3))
+    tri_verts = rng.integers(0, n_vert, (n_tri, 3)).astype(np.int32)
+    tri_element = rng.integers(0, 7, n_tri).astype(np.int32)
+    normals = rng.normal(size=(7, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    tri = rng.integers(-1, n_tri, n).astype(np.int32)           # -1: a miss
+    u, v = rng.random(n), rng.random(n)
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    hit = tri >= 0
+    c = tri_verts[tri[hit]]
+    uh, vh = u[hit, None], v[hit, None]
+    expected = ((1.0 - uh - vh) * values[c[:, 0]] + uh * values[c[:, 1]]
+                + vh * values[c[:, 2]])
+    np.testing.assert_array_equal(gouraud(values, tri_verts, tri[hit], u[hit], v[hit]),
+                                  expected)
+    L, front = shade_hits(values, tri_verts, tri_element, normals, d, tri, u, v)
+    facing = np.zeros(n, bool)
+    facing[hit] = (d[hit] * normals[tri_element[tri[hit]]]).sum(axis=1) < 0.0
+    assert 0 < facing.sum() < hit.sum()                 # some fronts, some backs, some misses
+    np.testing.assert_array_equal(front, facing)
+    np.testing.assert_array_equal(L[facing], expected[facing[hit]])
+    assert not L[~facing].any()                         # misses and backs are black

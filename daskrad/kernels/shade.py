@@ -76,3 +76,54 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
                        samples, views[i], ks[i], ns[i], modes[i], H[i], S[i], classes, probe,
                        lambert_first)
     return H, S
+
+
+@jit
+def gouraud(values, tri_verts, tri, u, v):
+    """``(n, 3) float64``: ``values (V, 3)`` interpolated at the points ``(u[k], v[k])`` of the
+    triangles ``tri[k]`` (rows of ``tri_verts (T, 3)``): ``(1 − u − v) values[a] + u values[b]
+    + v values[c]``, summed in that order (Gouraud shading, one pass without NumPy's
+    temporaries and without the GIL)."""
+    n = tri.shape[0]
+    out = np.empty((n, 3))
+    for k in range(n):
+        t = tri[k]
+        a = tri_verts[t, 0]
+        b = tri_verts[t, 1]
+        c = tri_verts[t, 2]
+        uk = u[k]
+        vk = v[k]
+        w = 1.0 - uk - vk
+        for ch in range(3):
+            out[k, ch] = w * values[a, ch] + uk * values[b, ch] + vk * values[c, ch]
+    return out
+
+
+@jit
+def shade_hits(values, tri_verts, tri_element, elem_normal, directions, tri, u, v):
+    """``(L (n, 3), front (n,) bool)`` along rays of unit ``directions (n, 3)`` that met
+    triangles ``tri (n,)`` (-1: none) at ``(u, v)``: the :func:`gouraud` radiance of
+    ``values (V, 3)`` where the ray meets the front of the triangle's element (``d · n < 0``,
+    ``elem_normal[tri_element[tri]]``), 0 for a miss or the back of a face (one-sided
+    surfaces); ``front`` says which."""
+    n = tri.shape[0]
+    out = np.zeros((n, 3))
+    front = np.zeros(n, np.bool_)
+    for k in range(n):
+        t = tri[k]
+        if t < 0:
+            continue
+        e = tri_element[t]
+        if not (directions[k, 0] * elem_normal[e, 0] + directions[k, 1] * elem_normal[e, 1]
+                + directions[k, 2] * elem_normal[e, 2]) < 0.0:
+            continue
+        front[k] = True
+        a = tri_verts[t, 0]
+        b = tri_verts[t, 1]
+        c = tri_verts[t, 2]
+        uk = u[k]
+        vk = v[k]
+        w = 1.0 - uk - vk
+        for ch in range(3):
+            out[k, ch] = w * values[a, ch] + uk * values[b, ch] + vk * values[c, ch]
+    return out, front
