@@ -44,9 +44,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from daskrad import formfactor, tolerances
-from daskrad.kernels.blockers import UNKNOWN, nearest_blocker
-from daskrad.kernels.geometry import element_planes, orthonormal_basis, scene_diagonal
-from daskrad.kernels.grid import Grid, closest_hit
+from daskrad.kernels.blockers import UNKNOWN, enclosed_points, nearest_blocker
+from daskrad.kernels.geometry import element_planes, scene_diagonal
+from daskrad.kernels.grid import Grid
 from daskrad.kernels.nearfield import near_field, receiver_factors
 from daskrad.mesh.types import Hierarchy
 from daskrad.scene.corners import QUAD_HALVES, real_corners, repeat_third
@@ -237,19 +237,10 @@ def _enclosed(ctx: ShootContext, points: np.ndarray, normal: np.ndarray) -> np.n
     grid, tri_elem = ctx.grid, ctx.tri_element
     if grid is None:        # a context made by hand, without the mesh's grid
         grid, tri_elem = formfactor.element_grid(ctx.vertices, ctx.elem_verts)
-    t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(*normal)
-    frame = np.array([[t1x, t1y, t1z], [t2x, t2y, t2z], normal])
-    dirs = _PROBES @ frame                                     # (13, 3) world directions
     lift = tolerances.RAY_OFFSET * (ctx.diagonal or scene_diagonal(ctx.vertices))
-    origins = np.repeat(points + lift * normal, len(dirs), axis=0)
-    d = np.tile(dirs, (len(points), 1))
-    _, tri, _, _ = closest_hit(grid, origins, d, 0.0, np.inf)
-    back = np.zeros(len(tri), bool)
-    hit = tri >= 0
-    elem = tri_elem[tri[hit]]
-    back[hit] = ((np.einsum("ij,ij->i", ctx.elem_normal[elem], d[hit]) > 0.0)
-                 & ~ctx.polygon_two_sided[ctx.elem_polygon[elem]])
-    return back.reshape(len(points), len(dirs)).all(axis=1)
+    return enclosed_points(grid, np.asarray(tri_elem), ctx.elem_normal, ctx.polygon_two_sided,
+                           ctx.elem_polygon, np.ascontiguousarray(points, dtype=np.float64),
+                           np.ascontiguousarray(normal, dtype=np.float64), float(lift), _PROBES)
 
 
 def two_sided_polygons(h: Hierarchy, eps: float, gap: float = 0.0) -> np.ndarray:

@@ -18,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from daskrad.kernels._jit import jit
+from daskrad.kernels.geometry import orthonormal_basis
+from daskrad.kernels.grid import closest_hit_one
 
 #: ``sides`` bits: the scene has points strictly in front of / behind a polygon's plane;
 #: ``UNKNOWN`` until the polygon is first met as a candidate blocker.
@@ -137,3 +139,43 @@ def nearest_blocker(corners, centroid, normal, polygon, vertices, elem_verts,
             best = max(dist, 0.0)
             limit = best
     return best
+
+
+@jit
+def enclosed_points(grid, tri_element, elem_normal, two_sided, elem_polygon, points, normal,
+                    lift, probes):
+    """``(k,) bool``: the points ``points (k, 3)`` of a shooter with unit ``normal (3,)`` that
+    lie inside a closed object: every probe ray, from the point lifted by ``lift`` along the
+    normal in the directions ``probes (m, 3)`` of the shooter's frame (``t1, t2, n`` of
+    :func:`daskrad.kernels.geometry.orthonormal_basis`), first meets the back of a one-sided
+    face (an element of grid triangle ``tri_element``, facing along ``elem_normal``, whose
+    polygon ``elem_polygon`` is not in ``two_sided``). A miss or a front face answers
+    "open" at once (:func:`daskrad.formfactor.shooting._enclosed` gives the why)."""
+    t1x, t1y, t1z, t2x, t2y, t2z = orthonormal_basis(normal[0], normal[1], normal[2])
+    m = probes.shape[0]
+    dirs = np.empty((m, 3))
+    for j in range(m):
+        a = probes[j, 0]
+        b = probes[j, 1]
+        c = probes[j, 2]
+        dirs[j, 0] = a * t1x + b * t2x + c * normal[0]
+        dirs[j, 1] = a * t1y + b * t2y + c * normal[1]
+        dirs[j, 2] = a * t1z + b * t2z + c * normal[2]
+    out = np.zeros(points.shape[0], np.bool_)
+    o = np.empty(3)
+    for i in range(points.shape[0]):
+        for x in range(3):
+            o[x] = points[i, x] + lift * normal[x]
+        inside = True
+        for j in range(m):
+            tri = closest_hit_one(grid, o, dirs[j], 0.0, np.inf)[1]
+            if tri < 0:
+                inside = False
+                break
+            e = tri_element[tri]
+            if not (elem_normal[e, 0] * dirs[j, 0] + elem_normal[e, 1] * dirs[j, 1]
+                    + elem_normal[e, 2] * dirs[j, 2]) > 0.0 or two_sided[elem_polygon[e]]:
+                inside = False
+                break
+        out[i] = inside
+    return out
