@@ -29,8 +29,8 @@ scenes converted to OBJ, which are not in the repository: docs/references.md; ``
 caps their solves). A scene of more than :data:`daskrad.render.DISC_POLYGONS` polygon
 triangles gathers by rays in a run, but both are measured here.
 
-``python -m benchmarks.bench_gather [--scene PATH ...] [--shots N] [--repeat N] [--runs N]``;
-writes
+``python -m benchmarks.bench_gather [--scene PATH ...] [--shots N] [--repeat N] [--runs N]
+[--sides R ...]`` (``--sides``: the disc's error and time at these sides too); writes
 ``benchmarks/results/gather.json``.
 """
 
@@ -101,7 +101,7 @@ def _solved(path: Path, settings: Settings):
     return scene, light, solve.radiosity(light, settings, ex)
 
 
-def rows(path: Path, shots: int | None, repeat: int) -> dict:
+def rows(path: Path, shots: int | None, repeat: int, sides: tuple = ()) -> dict:
     settings = Settings(workers=0)
     if shots is not None:
         settings = settings.replace(max_iterations=shots)
@@ -138,8 +138,19 @@ def rows(path: Path, shots: int | None, repeat: int) -> dict:
                        "us_per_vertex": 1e6 * statistics.median(seconds[method])
                        / len(gctx.points),
                        "relative_rms": float(np.sqrt(np.mean((got - ref) ** 2)) / scale),
+                       "worst": float(np.abs(got - ref).max() / scale),
                        "bias": float(np.mean(got - ref) / scale)}
     out["speedup"] = out["rays"]["seconds"] / out["disc"]["seconds"]
+    out["sides"] = {}
+    for side in sides:                      # the disc at other sides, on the same vertices
+        times = []
+        for _ in range(repeat):
+            got, t = _gathered(_arm(gctx, "disc", side), L)
+            times.append(t)
+        out["sides"][int(side)] = {
+            "seconds": statistics.median(times),
+            "relative_rms": float(np.sqrt(np.mean((got - ref) ** 2)) / scale),
+            "worst": float(np.abs(got - ref).max() / scale)}
     return out
 
 
@@ -207,12 +218,14 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--shots", type=int, default=None,
                         help="cap the solves of --scene scenes (default: the run's own)")
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--sides", type=int, nargs="*", default=[],
+                        help="also the disc at these sides (error, worst vertex, seconds)")
     parser.add_argument("--runs", type=int, default=8,
                         help="alternated whole runs of each arm of the ahead table")
     args = parser.parse_args([] if argv is None else argv)
     bundled = [SCENES / "cornell_box.obj", SCENES / "lit_room.obj"]
-    table = [rows(p, None, args.repeat) for p in bundled]
-    table += [rows(p, args.shots, args.repeat) for p in args.scene]
+    table = [rows(p, None, args.repeat, tuple(args.sides)) for p in bundled]
+    table += [rows(p, args.shots, args.repeat, tuple(args.sides)) for p in args.scene]
     images = [image(p, args.repeat) for p in bundled]
     aheads = [ahead(p, args.runs) for p in bundled]
 
@@ -233,6 +246,16 @@ def main(argv: list[str] | None = None) -> dict:
               f"{b['relative_rms']:>8.2%}{b['bias']:>+9.2%}{r['speedup']:>7.2f}"
               f"{r['reference_gap']['relative_rms']:>9.2%}{r['reference_gap']['bias']:>+8.2%}"
               f"  {r['run_method']}")
+    if args.sides:
+        print(f"\nthe disc at other sides: relative RMS / worst vertex / seconds (the rays: "
+              f"{render.GATHER_SIDE}², as above)")
+        for r in table:
+            if r.get("sides"):
+                a = r["rays"]
+                print(f"{r['scene']:<16} rays {a['relative_rms']:.2%} / {a['worst']:.1%} / "
+                      f"{a['seconds']:.3f} s;  " + ";  ".join(
+                          f"{side}: {v['relative_rms']:.2%} / {v['worst']:.1%} / "
+                          f"{v['seconds']:.3f} s" for side, v in r["sides"].items()))
     print(f"\nrender {REFERENCE_SIZE}x{REFERENCE_SIZE}, {images[0]['threads']} threads: seconds "
           f"(medians of {args.repeat}); Cornell box error against the path tracer")
     for r in images:

@@ -1115,22 +1115,24 @@ JUNCTION_REACH = 1.0
 #: figures within 0.6 points of each other. The gather is ~3/4 of the Cornell box's render CPU.
 GATHER_SIDE = 24
 
-#: The disc's side: 577 pixels on the disc, as many directions as ``GATHER_SIDE²`` rays; and
-#: the side of a scene of at most :data:`DISC_SIMPLE` polygon triangles, 349 pixels. The
-#: directions are the lattice's, turned and shifted per vertex, not jittered rays, so in a
-#: simple scene fewer err less than the rays: per vertex, against the mean of a disc of side
-#: 100 and 64² rays (``bench_gather``'s reference), sides 27 / 23 / 21 / 19 / 17 give the
-#: Cornell box's 2,663 junction vertices 1.30 / 1.60 / 1.93 / 2.20 / 2.57 % RMS (worst 9.0 /
-#: 10.8 / 12.3 / 16.9 / 18.7 %) in 0.53 / 0.44 / 0.35 / 0.30 / 0.26 s, where 24² rays give
-#: 2.13 % (worst 17.2 %) in 1.41 s; the lit room 0.85 / 1.01 / 1.17 / 1.40 / 1.66 % against
-#: 1.26 %; the MGF cube (67 triangles) 1.02 % at 27 and 1.50 % at 21 against 1.73 %. A furnished
-#: room needs the finer disc: MGF office2 (741 triangles) 4.17 % at 27 but 5.98 % at 21,
-#: against the rays' 5.22 %. The images at 21 (``bench_shadows``, four seeds each, side 27 →
-#: 21): contact pixels of the sun-lit open box 4.34–4.47 → 4.44–4.54 %, of the point-lit
-#: closed box 2.15–2.16 → 2.17–2.22 % (rays: 4.52 %, 2.16–2.24 %), the closed box's worst
-#: contact row +5.3…+7.6 → +4.7…+8.0 % (rays −1.4…+10.6 %), the lit room's contact pixels
-#: 2.59–2.66 % both; the Cornell box at 128² against the path tracer 0.03793 → 0.03792 off
-#: the light.
+#: The disc's side: ~573 pixels on the disc (560–578 as the lattice is shifted per vertex), as
+#: many directions as ``GATHER_SIDE²`` rays; and the side of a scene of at most
+#: :data:`DISC_SIMPLE` polygon triangles, ~346 pixels (334–350). The directions are the
+#: lattice's, turned and shifted per vertex, not jittered rays, so in a simple scene fewer err
+#: no more than the rays did: per vertex, against the mean of a disc of side 100 and 64² rays
+#: (``python -m benchmarks.bench_gather --sides 27 23 21 19 17``), sides 27 / 23 / 21 / 19 / 17
+#: give the Cornell box's 2,663 junction vertices 1.30 / 1.60 / 1.93 / 2.20 / 2.57 % RMS (worst
+#: vertex 9.0 / 10.8 / 12.3 / 16.9 / 18.7 %), where 24² rays give 2.13 % (worst 17.2 %); the lit
+#: room 0.85 / 1.01 / 1.17 / 1.40 / 1.66 % against 1.26 %; the MGF cube (67 triangles) 1.02 % at
+#: 27 and 1.50 % at 21 against 1.73 %. A furnished room needs the finer disc: MGF office2 (741
+#: triangles) 4.17 % at 27 but 5.98 % at 21, against the rays' 5.22 %. The images at 21 against
+#: 27 (``bench_shadows`` with the gather's seeds shifted four ways, runs not kept in a
+#: benchmark): contact pixels of the sun-lit open box 4.44–4.54 % against 4.34–4.47 %, of the
+#: point-lit closed box 2.17–2.22 % against 2.15–2.16 % (slightly worse at 21 on both; the rays
+#: gave 4.52 % and 2.16–2.24 %), the closed box's worst contact row +4.7…+8.0 % against
+#: +5.3…+7.6 % (rays −1.4…+10.6 %), the lit room's contact pixels 2.59–2.66 % both; the
+#: Cornell box at 128² against the path tracer 0.03792 off the light either way. So side 21 is
+#: no worse than the rays shipped before it, at two thirds of side 27's cost.
 DISC_SIDE = 27
 DISC_SIDE_SIMPLE = 21
 #: The most polygon triangles of a scene whose disc has side :data:`DISC_SIDE_SIMPLE`: above
@@ -1322,16 +1324,17 @@ def _rays_rows(gctx: GatherContext, start: int, stop: int) -> GatherOperator:
 #: - ``"rays"``: ``GATHER_SIDE²`` stratified, jittered, cosine-distributed rays a vertex,
 #:   each walking the polygons' grid (:func:`daskrad.kernels.gather.gather_operator`);
 #: - ``"disc"``: the scene's polygons projected onto the base of the vertex's hemisphere,
-#:   Doi's item buffer of the form factors, ``DISC_SIDE × DISC_SIDE`` pixels over the disc,
+#:   Doi's item buffer of the form factors, ``R × R`` pixels over the disc (:func:`gather_side`),
 #:   each disc pixel a cosine-distributed direction (Nusselt's analog;
 #:   :func:`daskrad.kernels.gather.disc_operator`). One projection of every polygon a vertex
 #:   instead of a walk a ray: the cheaper up to ~800 triangles (:data:`DISC_POLYGONS`).
 #:
-#: Measured (``bench_gather``: per-vertex error of the gathered radiance against the mean of a
-#: disc of side 100 and 64² rays, one thread): the Cornell box's 2,663 junction vertices, rays
-#: 2.13 % RMS in 1.22 s, disc 1.30 % in 0.47 s; the lit room 1.26 / 0.85 %, 3.4× faster; the
-#: MGF cube 1.73 / 1.02 %, 478 / 206 µs a vertex. The Cornell box's render at 128² took 0.83
-#: → 0.44 s with the same error against the path tracer (relative RMS 0.01797 both).
+#: Measured when the disc came, at side 27 (``bench_gather``: per-vertex error of the gathered
+#: radiance against the mean of a disc of side 100 and 64² rays, one thread): the Cornell box's
+#: 2,663 junction vertices, rays 2.13 % RMS in 1.22 s, disc 1.30 % in 0.47 s; the lit room
+#: 1.26 / 0.85 %, 3.4× faster; the MGF cube 1.73 / 1.02 %, 478 / 206 µs a vertex. The Cornell
+#: box's render at 128² took 0.83 → 0.44 s with the same error against the path tracer
+#: (relative RMS 0.01797 both). The sides now: :data:`DISC_SIDE`.
 GATHER_METHODS = {"rays": _rays_rows, "disc": _disc_rows}
 
 
@@ -1502,7 +1505,7 @@ def gather_operator_of(plan: GatherPlan, executor=None) -> GatherOperator | None
 
 #: Junction vertices per range of a gather computed ahead (:func:`gather_ahead`): a range
 #: the render asks for while it is still being computed on an idle core is computed again
-#: (the same bits), so short ranges waste little (~6 ms at the disc's ~190 µs a vertex).
+#: (the same bits), so short ranges waste little (~4 ms at the Cornell box's ~135 µs a vertex).
 AHEAD_BATCH = 32
 
 

@@ -210,3 +210,51 @@ def test_a_cluster_starts_nothing_ahead(solved, cluster_client, tmp_path):
         assert render.gather_ahead(scene, light, SMALL, render.camera(scene, SMALL), ex) is None
     finally:
         ex.close()
+
+
+def test_without_idle_priority_the_thread_stops_after_its_first_range(monkeypatch):
+    # the first range runs at the normal priority (it loads the kernel); without SCHED_IDLE
+    # the thread must not go on competing with the solve: the render computes the rest
+    monkeypatch.setattr(executor, "idle_priority", lambda: False)
+    ex = InProcess(threads=2)
+    try:
+        work = Ahead(lambda: 0, lambda p: p, lambda p: [(i, i + 1) for i in range(20)],
+                     lambda ctx, a, b: (a, b), ex.map)
+        assert work.join(timeout=60)
+        assert work.progress() == (1, 20)
+        assert work.result() == [(i, i + 1) for i in range(20)]
+    finally:
+        ex.close()
+
+
+def test_a_plan_made_under_other_module_settings_is_not_taken(solved, monkeypatch):
+    # the disc's side (and the other settings plan_gather reads) at the render, not at the
+    # plan, decide: a plan made before they changed gathers along other directions
+    scene, light, sol, _ = solved
+    cam = render.camera(scene, SMALL)
+    ex = InProcess(threads=2)
+    try:
+        ahead = render.gather_ahead(scene, light, SMALL, cam, ex)
+        ahead.plan()
+        monkeypatch.setattr(render, "DISC_SIDE_SIMPLE", render.DISC_SIDE_SIMPLE + 2)
+        own = render.image(scene, light, sol, SMALL, ex, cam)
+        assert not ahead.plan().fits(own.context)
+        image = render.image(scene, light, sol, SMALL, ex, cam, ahead)
+    finally:
+        ex.close()
+    np.testing.assert_array_equal(image.pixels, own.pixels)
+    assert not np.array_equal(image.pixels, solved[3].pixels)     # the side changed the image
+
+
+def test_a_plan_for_other_polygons_is_not_taken(solved):
+    scene, light, sol, plain = solved
+    cam = render.camera(scene, SMALL)
+    ex = InProcess(threads=2)
+    try:
+        ahead = render.gather_ahead(scene, light, SMALL, cam, ex)
+        ctx = render.context(scene, light, sol, SMALL, cam)
+        assert ahead.plan().fits(ctx)
+        other = replace(ctx, occluders=ctx.occluders._replace())    # equal, another object
+        assert not ahead.plan().fits(other)
+    finally:
+        ex.close()

@@ -206,11 +206,21 @@ def test_row_cache_budget_holds_every_row_when_they_fit_else_a_share_of_memory()
     assert (cache.misses, cache.hits) == (h.n_patches, h.n_patches)
 
 
-def test_points_under_a_block_standing_on_the_shooter_are_dropped():
+def _rotation(degrees: float) -> np.ndarray:
+    """A rotation by ``degrees`` about the axis (1, 2, 0.5) (Rodrigues)."""
+    k = np.array([1.0, 2.0, 0.5]) / np.linalg.norm([1.0, 2.0, 0.5])
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    a = math.radians(degrees)
+    return np.eye(3) + math.sin(a) * K + (1 - math.cos(a)) * K @ K
+
+
+@pytest.mark.parametrize("degrees", [0.0, 37.0], ids=["upright", "tilted"])
+def test_points_under_a_block_standing_on_the_shooter_are_dropped(degrees):
     # a floor (one patch, facing +z) with a closed block standing on it (four sides and a top,
     # facing out, no bottom), and a card high above: sample points of the floor under the block
     # are enclosed (every probe ray meets a face from behind) and are dropped; the rest keep
-    # their area weights, renormalised
+    # their area weights, renormalised. Tilted, the probes leave in the floor's own frame (a
+    # frame mixed up sends some below the floor, whose front they meet: no point enclosed)
     from daskrad.scene.validate import scene_from_arrays
 
     lo, hi, top = np.array([0.5, 0.2]), np.array([0.8, 0.8]), 0.3
@@ -225,7 +235,8 @@ def test_points_under_a_block_standing_on_the_shooter_are_dropped():
              [b + 0, b + 1, b + 5, b + 4], [b + 1, b + 2, b + 6, b + 5],     # sides, outwards
              [b + 2, b + 3, b + 7, b + 6], [b + 3, b + 0, b + 4, b + 7],
              [12, 13, 14, 15]]
-    scene = scene_from_arrays(np.array(v, float), np.array(polys), np.zeros(7, int),
+    turn = _rotation(degrees)
+    scene = scene_from_arrays(np.array(v, float) @ turn.T, np.array(polys), np.zeros(7, int),
                               [[0.5] * 3], [[1.0] * 3])
     # the floor uncut: by default it is cut along the block's feet (issue 14) and no patch
     # straddles it, but a block standing just above the floor (beyond tolerances.CONTACT) is
@@ -235,7 +246,8 @@ def test_points_under_a_block_standing_on_the_shooter_are_dropped():
     corners = h.vertices[real_corners(h.patch_verts[floor])]
     bary = shooting.SHOOTER_POINTS
     every = np.concatenate([bary @ corners[[0, 1, 2]], bary @ corners[[0, 2, 3]]])
-    under = np.all((every[:, :2] > lo) & (every[:, :2] < hi), axis=1)
+    upright = every @ turn                          # back in the block's own frame
+    under = np.all((upright[:, :2] > lo) & (upright[:, :2] < hi), axis=1)
     assert 0 < under.sum() < len(every)
     points, weights = shooting.shooter_points(ctx, floor)
     kept = {tuple(np.round(q, 12)) for q in points}

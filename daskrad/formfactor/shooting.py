@@ -238,8 +238,9 @@ def _enclosed(ctx: ShootContext, points: np.ndarray, normal: np.ndarray) -> np.n
     if grid is None:        # a context made by hand, without the mesh's grid
         grid, tri_elem = formfactor.element_grid(ctx.vertices, ctx.elem_verts)
     lift = tolerances.RAY_OFFSET * (ctx.diagonal or scene_diagonal(ctx.vertices))
-    return enclosed_points(grid, np.asarray(tri_elem), ctx.elem_normal, ctx.polygon_two_sided,
-                           ctx.elem_polygon, np.ascontiguousarray(points, dtype=np.float64),
+    return enclosed_points(grid, np.asarray(tri_elem, np.int32), ctx.elem_normal,
+                           ctx.polygon_two_sided, ctx.elem_polygon,
+                           np.ascontiguousarray(points, dtype=np.float64),
                            np.ascontiguousarray(normal, dtype=np.float64), float(lift), _PROBES)
 
 
