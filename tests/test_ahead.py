@@ -164,23 +164,8 @@ def test_a_plan_that_fails_raises_where_it_is_read():
         work.result()
 
 
-def test_stop_ends_the_work_ahead_after_the_range_it_is_in():
-    release, started = threading.Event(), threading.Event()
-    ex = InProcess(threads=2)
-    try:
-        work = Ahead(lambda: 0, lambda p: p, lambda p: [(i, i + 1) for i in range(50)],
-                     _blocking_task(release, started, "daskrad-ahead"), ex.map)
-        assert started.wait(timeout=60)
-        work.stop()
-        release.set()
-        assert work.join(timeout=60)
-        assert work.progress() == (1, 50)        # the range it was in, then no other
-    finally:
-        release.set()
-        ex.close()
-
-
-def test_closing_the_executor_stops_its_work_ahead(monkeypatch):
+@pytest.mark.parametrize("how", ["stop", "close the executor"])
+def test_the_work_ahead_ends_after_the_range_it_is_in(monkeypatch, how):
     release, started = threading.Event(), threading.Event()
     monkeypatch.setattr(render, "gather_vertices",
                         _blocking_task(release, started, "daskrad-ahead"))
@@ -189,14 +174,16 @@ def test_closing_the_executor_stops_its_work_ahead(monkeypatch):
         work = ex.ahead("gather", lambda: 0, lambda p: p,
                         lambda p: [(i, i + 1) for i in range(50)])
         assert started.wait(timeout=60)
-        ex.close()
+        if how == "stop":
+            work.stop()
+        else:
+            ex.close()
         release.set()
         assert work.join(timeout=60)
         assert work.progress() == (1, 50)        # the range it was in, then no other
     finally:
         release.set()
         ex.close()
-
 
 
 def test_a_cluster_starts_nothing_ahead(solved, cluster_client, tmp_path):

@@ -257,7 +257,7 @@ def test_sample_positions_are_stratified_and_centred_for_any_count():
 
 
 def test_the_shading_kernels_interpolate_as_gouraud_bit_for_bit(rng):
-    # shade_hits writes gouraud's body out again (one pass over the rays): both are held to
+    # shade_hits and gouraud share one interpolation (one pass over the rays): both are held to
     # Gouraud's formula, summed in its order, and shade_hits to one-sidedness
     from daskrad.kernels.shade import gouraud, shade_hits
 

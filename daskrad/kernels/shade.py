@@ -79,6 +79,18 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
 
 
 @jit
+def _interpolate(values, tri_verts, t, u, v, out, k):
+    """``out[k] = (1 − u − v) values[a] + u values[b] + v values[c]``, ``(a, b, c) =
+    tri_verts[t]``, summed in that order (inlined by LLVM: the same time as written out)."""
+    a = tri_verts[t, 0]
+    b = tri_verts[t, 1]
+    c = tri_verts[t, 2]
+    w = 1.0 - u - v
+    for ch in range(3):
+        out[k, ch] = w * values[a, ch] + u * values[b, ch] + v * values[c, ch]
+
+
+@jit
 def gouraud(values, tri_verts, tri, u, v):
     """``(n, 3) float64``: ``values (V, 3)`` interpolated at the points ``(u[k], v[k])`` of the
     triangles ``tri[k]`` (rows of ``tri_verts (T, 3)``): ``(1 − u − v) values[a] + u values[b]
@@ -87,15 +99,7 @@ def gouraud(values, tri_verts, tri, u, v):
     n = tri.shape[0]
     out = np.empty((n, 3))
     for k in range(n):
-        t = tri[k]
-        a = tri_verts[t, 0]
-        b = tri_verts[t, 1]
-        c = tri_verts[t, 2]
-        uk = u[k]
-        vk = v[k]
-        w = 1.0 - uk - vk
-        for ch in range(3):
-            out[k, ch] = w * values[a, ch] + uk * values[b, ch] + vk * values[c, ch]
+        _interpolate(values, tri_verts, tri[k], u[k], v[k], out, k)
     return out
 
 
@@ -104,8 +108,8 @@ def shade_hits(values, tri_verts, tri_element, elem_normal, directions, tri, u, 
     """``(L (n, 3), front (n,) bool)`` along rays of unit ``directions (n, 3)`` that met
     triangles ``tri (n,)`` (-1: none) at ``(u, v)``: the :func:`gouraud` radiance of
     ``values (V, 3)`` where the ray meets the front of the triangle's element (``d · n < 0``,
-    ``elem_normal[tri_element[tri]]``), 0 for a miss or the back of a face (one-sided
-    surfaces); ``front`` says which."""
+    ``elem_normal[tri_element[tri]]``, summed left to right), 0 for a miss or the back of a
+    face (one-sided surfaces); ``front`` says which."""
     n = tri.shape[0]
     out = np.zeros((n, 3))
     front = np.zeros(n, np.bool_)
@@ -118,12 +122,5 @@ def shade_hits(values, tri_verts, tri_element, elem_normal, directions, tri, u, 
                 + directions[k, 2] * elem_normal[e, 2]) < 0.0:
             continue
         front[k] = True
-        a = tri_verts[t, 0]
-        b = tri_verts[t, 1]
-        c = tri_verts[t, 2]
-        uk = u[k]
-        vk = v[k]
-        w = 1.0 - uk - vk
-        for ch in range(3):
-            out[k, ch] = w * values[a, ch] + uk * values[b, ch] + vk * values[c, ch]
+        _interpolate(values, tri_verts, t, u[k], v[k], out, k)
     return out, front
