@@ -228,7 +228,7 @@ class Ahead:
     lock, which a starved thread must not hold while the render's threads wait on it; the
     others at idle priority (:func:`idle_priority`), taking a core only when the solve, the
     store's writes and every other thread of the machine leave one free. Where a thread
-    cannot be given that priority (not Linux), it stops after the first range.
+    cannot be given that priority (not Linux, or refused), it stops after the first range.
 
     :meth:`result` stops it and runs the ranges it has not finished through ``run`` (the
     executor's threads, at the normal priority), one still running included: every task is
