@@ -11,18 +11,21 @@ from pathlib import Path
 
 import numpy as np
 
-from daskrad import render
+from daskrad import direct, render, solve
+from daskrad.distributed.executor import InProcess
 from daskrad.io import read_exr
 from daskrad.kernels.hemisphere import disc_pixels
+from daskrad.preprocess import preprocess
 from daskrad.run import solve_scene
-from daskrad.scene import scene_from_arrays
+from daskrad.scene import load_scene, scene_from_arrays
 from daskrad.settings import Settings
 from daskrad.testing import closed_box, grid, merge, square_above, triangle_soup
 
 __all__ = [
-    "CORNELL", "ORIGIN", "REPO", "SCENES", "UP", "assert_same_run", "blocker_scene",
-    "closed_box", "corner_rectangle", "grid", "in_shadow", "merge", "projected_perimeter_px",
-    "raster_bound", "render_context", "square_above", "store_arrays", "triangle_soup",
+    "CORNELL", "ORIGIN", "REPO", "SCENES", "SMALL_RUN", "UP", "assert_same_run",
+    "blocker_scene", "closed_box", "corner_rectangle", "grid", "in_shadow", "merge",
+    "projected_perimeter_px", "raster_bound", "render_context", "square_above", "steps_on",
+    "store_arrays", "triangle_soup",
 ]
 
 
@@ -139,3 +142,23 @@ def render_context(scene, **opts):
                            **opts})
     h, _, sol, light = solve_scene(scene, settings)
     return render.for_view(render.context(scene, light, sol, settings, scene.camera)), h
+
+
+#: Penumbra shooters (the Cornell box's blocks), re-shots from the row cache, subdivision
+#: around the lights, per-pixel pixels and junction vertices to gather; small enough for a test.
+SMALL_RUN = Settings(patch_size=150.0, element_size=75.0, resolution=64, tolerance=1e-2,
+                     width=32, height=32, spp=2, workers=0, batch=8)
+
+
+def steps_on(scene_name: str, threads: int, settings: Settings = SMALL_RUN):
+    """``(scene, light, sol, image)``: the bundled scene ``scene_name`` through steps 1–4 at
+    ``settings`` in-process, on ``threads`` threads (the executor closed after)."""
+    scene = load_scene(SCENES / scene_name)
+    ex = InProcess(threads=threads)
+    try:
+        light = direct.light(scene, preprocess(scene, settings), settings, ex)
+        sol = solve.radiosity(light, settings, ex)
+        image = render.image(scene, light, sol, settings, ex)
+    finally:
+        ex.close()
+    return scene, light, sol, image

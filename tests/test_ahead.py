@@ -11,31 +11,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from daskrad import direct, render, solve
+from daskrad import render
 from daskrad.distributed import executor
 from daskrad.distributed.executor import Ahead, InProcess
-from daskrad.preprocess import preprocess
-from daskrad.scene import load_scene
-from daskrad.settings import Settings
-from tests.helpers import SCENES
-
-#: A Cornell box with junction vertices to gather, small enough for a test.
-SMALL = Settings(patch_size=150.0, element_size=75.0, resolution=64, tolerance=1e-2,
-                 width=32, height=32, spp=2, workers=0, batch=8)
+from tests.helpers import SMALL_RUN as SMALL
+from tests.helpers import steps_on
 
 
 @pytest.fixture(scope="module")
 def solved():
-    """The Cornell box lit and solved at :data:`SMALL` on 2 threads."""
-    scene = load_scene(SCENES / "cornell_box.obj")
-    ex = InProcess(threads=2)
-    try:
-        light = direct.light(scene, preprocess(scene, SMALL), SMALL, ex)
-        sol = solve.radiosity(light, SMALL, ex)
-        plain = render.image(scene, light, sol, SMALL, ex)
-    finally:
-        ex.close()
-    return scene, light, sol, plain
+    """``(scene, light, sol, image)``: the Cornell box at :data:`SMALL` on 2 threads."""
+    return steps_on("cornell_box.obj", 2)
 
 
 def _image(solved, finish: bool, monkeypatch, threads: int = 2):

@@ -7,29 +7,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from daskrad import direct, render, solve
 from daskrad.distributed.executor import InProcess, default_threads
 from daskrad.preprocess import preprocess
 from daskrad.scene import load_scene
-from daskrad.settings import Settings
-from tests.helpers import SCENES
-
-#: Penumbra shooters (the blocks), re-shots from the row cache, subdivision around the lights,
-#: per-pixel pixels and a Phong-free scene; small enough for a test.
-SMALL = Settings(patch_size=150.0, element_size=75.0, resolution=64, tolerance=1e-2,
-                 width=32, height=32, spp=2, workers=0, batch=8)
+from tests.helpers import SCENES, steps_on
+from tests.helpers import SMALL_RUN as SMALL
 
 
 def _steps(scene_name: str, threads: int):
-    scene = load_scene(SCENES / scene_name)
-    ex = InProcess(threads=threads)
-    try:
-        light = direct.light(scene, preprocess(scene, SMALL), SMALL, ex)
-        sol = solve.radiosity(light, SMALL, ex)
-        image = render.image(scene, light, sol, SMALL, ex)
-    finally:
-        ex.close()
-    return light, sol, image
+    return steps_on(scene_name, threads)[1:]
 
 
 @pytest.mark.parametrize("scene_name", ["cornell_box.obj", "lit_room.obj"])
