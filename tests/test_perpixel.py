@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -452,3 +453,132 @@ def test_light_modes_keep_the_bits_of_tracing_around_a_blocker_and_are_dropped_b
     capped, _ = render_context(scene, **kw)
     assert capped.elem_light_mode is None
     assert np.array_equal(_render(capped)[0], image)
+
+
+@pytest.mark.parametrize("samples", [1, 2, 4])
+def test_the_per_pixel_pass_reports_the_vertex_pass_classes(samples):
+    # With Lambert's F after the rays, a light every ray finds blocked is still reported
+    # hidden (its F is not computed): the classes are those of the vertex pass, which
+    # computes F first, at every hit of the blade-and-plate scene in every orientation
+    from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_TRACE, LIGHT_VISIBLE, irradiance_points
+    from daskrad.kernels.shade import direct_at_hits
+
+    plate = np.array([[[0.5, 0.5, -3], [3, 0.5, -3], [3, 0.5, 3]],
+                      [[0.5, 0.5, -3], [3, 0.5, 3], [0.5, 0.5, 3]]])     # hides x > 1 whole
+    run, p = _blade_hits(n=600, blocker=plate, samples=samples)
+    rng = np.random.default_rng(11)
+    nrm = rng.normal(size=p.shape) + np.array([0.0, 1.5, 0.0])
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    seeds = np.arange(len(p), dtype=np.int64)
+    classes = np.full((len(p), 1), -1, np.int8)
+    direct_at_hits(run.grid, p, nrm, nrm, seeds, np.zeros((len(p), 3)), np.zeros(len(p)),
+                   1e-7, *run.lights, samples, np.full((len(p), 1), LIGHT_TRACE, np.int8),
+                   False, False, True, classes)
+    vertex = irradiance_points(run.grid, p, p, nrm, seeds, 1e-7, *run.lights, samples)[1]
+    assert np.array_equal(classes, vertex)
+    for c in (LIGHT_TRACE, LIGHT_VISIBLE, LIGHT_HIDDEN):
+        assert (classes == c).sum() > 20
+
+
+def _pixel_modes_rule(modes, elem, pixel, base_elem, base_class, own):
+    """The rule of :func:`daskrad.kernels.shade.pixel_modes`, written plainly."""
+    from daskrad.kernels.direct import LIGHT_TRACE
+
+    out = modes.copy()
+    for i in range(len(modes)):
+        k, e = pixel[i], elem[i]
+        if not (base_elem[k, :own] == e).all():
+            continue
+        on = base_elem[k] == e
+        for m in range(modes.shape[1]):
+            found = set(base_class[k, on, m].tolist())
+            if modes[i, m] == LIGHT_TRACE and len(found) == 1 and LIGHT_TRACE not in found:
+                out[i, m] = found.pop()
+    return out
+
+
+def test_an_edge_sample_takes_a_light_only_where_every_base_sample_on_its_element_agrees(rng):
+    from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_TRACE, LIGHT_VISIBLE
+    from daskrad.kernels.shade import pixel_modes
+
+    # pixels mostly on one element, each light mostly in one class around a pixel
+    P, own, n, M = 40, 4, 600, 3
+    base_elem = np.where(rng.random((P, 9 * own)) < 0.97, 7,
+                         rng.choice([-1, 8], size=(P, 9 * own))).astype(np.int64)
+    base_class = np.repeat(rng.choice([LIGHT_TRACE, LIGHT_VISIBLE, LIGHT_HIDDEN], size=(P, 1, M),
+                                      p=[0.2, 0.4, 0.4]), 9 * own, axis=1).astype(np.int8)
+    flip = rng.random(base_class.shape) < 0.01
+    base_class[flip] = rng.choice([LIGHT_TRACE, LIGHT_VISIBLE, LIGHT_HIDDEN], size=flip.sum())
+    modes = rng.choice([LIGHT_TRACE, LIGHT_VISIBLE, LIGHT_HIDDEN], size=(n, M),
+                       p=[0.8, 0.1, 0.1]).astype(np.int8)
+    elem = rng.choice([7, 8], size=n, p=[0.9, 0.1]).astype(np.int64)
+    pixel = rng.integers(0, P, size=n).astype(np.int64)
+    out = pixel_modes(modes, elem, pixel, base_elem, base_class, own)
+    assert np.array_equal(out, _pixel_modes_rule(modes, elem, pixel, base_elem, base_class, own))
+    changed = out != modes
+    assert changed.any() and (modes[changed] == LIGHT_TRACE).all()
+    assert (out[changed] == LIGHT_VISIBLE).any() and (out[changed] == LIGHT_HIDDEN).any()
+    # one sample of the pixel itself on another element, or one neighbour's sample on the
+    # same element that disagrees, and nothing is taken
+    k, m = pixel[0], 0
+    base_elem[k] = elem[0]
+    base_class[k, :, m] = LIGHT_HIDDEN
+    one = (modes[:1].copy(), elem[:1], pixel[:1])
+    one[0][0, m] = LIGHT_TRACE
+    assert pixel_modes(*one, base_elem, base_class, own)[0, m] == LIGHT_HIDDEN
+    for s, change in ((own - 1, "elem"), (own + 5, "class")):
+        e2, c2 = base_elem.copy(), base_class.copy()
+        if change == "elem":
+            e2[k, s] = elem[0] + 1
+        else:
+            c2[k, s, m] = LIGHT_VISIBLE
+        assert pixel_modes(*one, e2, c2, own)[0, m] == LIGHT_TRACE
+    # a neighbour's sample on another element does not count
+    e2 = base_elem.copy()
+    e2[k, own + 5] = elem[0] + 1
+    base_class[k, own + 5, m] = LIGHT_VISIBLE
+    assert pixel_modes(*one, e2, base_class, own)[0, m] == LIGHT_HIDDEN
+
+
+def _shadow_scene(size=36):
+    """A floor (ρ 0.5) under a 0.3 × 0.3 emitter facing down, a black bar between: a
+    penumbra and an umbra in view, and the emitter's and the bar's outlines."""
+    v = np.array([[-1, 0, -1], [-1, 0, 1], [1, 0, 1], [1, 0, -1],
+                  [-0.15, 0.9, -0.15], [0.15, 0.9, -0.15], [0.15, 0.9, 0.15], [-0.15, 0.9, 0.15],
+                  [-0.6, 0.45, -0.08], [-0.6, 0.45, 0.08], [0.6, 0.45, 0.08],
+                  [0.6, 0.45, -0.08]])
+    cam = Camera(eye=np.array([0.0, 3.0, 0.05]), look_at=np.zeros(3),
+                 up=np.array([0.0, 0.0, 1.0]), fov=40.0, width=size, height=size)
+    return scene_from_arrays(v, np.array([[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11]]),
+                             [0, 1, 2], diffuse=[[RHO] * 3, [0.0] * 3, [0.0] * 3],
+                             emission=[[0] * 3, [8.0] * 3, [0] * 3], camera=cam)
+
+
+def test_edge_verdicts_change_only_edge_pixels_a_little_and_not_with_the_tiles(monkeypatch):
+    # Without the verdicts an edge pixel has the bits of a whole image at edge_spp. With
+    # them the light is taken as the base samples around the pixel found it at most of the
+    # edge samples; a verdict that holds gives the traced bits (V exactly 1 or 0), so only
+    # edge pixels may change, by less than the shadow rays' own noise between the two sample
+    # counts; and the image does not depend on the tiling (the apron's base samples are the
+    # bits their own tile computes).
+    scene = _shadow_scene()
+    ctx, _ = render_context(scene, patch_size=2.0, element_size=0.1, rdiff=0.01,
+                            subdivide=0.0, spp=4, edge_spp=16)
+    monkeypatch.setattr(render, "EDGE_VERDICTS", False)
+    traced, stats = render.pixels_stats(ctx)
+    full = render.render(replace(ctx, spp=16, edge_spp=0))
+    base = render.render(replace(ctx, edge_spp=0))
+    edge = (traced != base).any(axis=2)
+    assert 0 < edge.sum() <= stats["edges"] < traced.shape[0] * traced.shape[1] // 2
+    np.testing.assert_array_equal(traced[edge], full[edge])
+    assert stats["verdicts"] == 0
+    monkeypatch.setattr(render, "EDGE_VERDICTS", True)
+    image, stats = render.pixels_stats(ctx)
+    assert stats["verdicts"] > 100          # the penumbra itself is traced: its pixels disagree
+    changed = (image != traced).any(axis=2)
+    assert not (changed & ~edge).any()
+    assert np.array_equal(image[~edge], base[~edge])
+    noise = np.sqrt(((full - base)[edge] ** 2).mean())
+    assert np.sqrt(((image - traced)[edge] ** 2).mean()) < 0.5 * noise
+    small, _ = _render(ctx, tile=7)
+    assert np.array_equal(small, image)

@@ -204,12 +204,13 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
         SHADOW_PROBES`); the vertex pass does not (a vertex's classes must be exact).
     lambert_first : bool
         Lambert's ``F`` of an area light before its shadow rays (``out_class`` needs it: a
-        light is hidden only where ``F > 0``). ``False`` (the per-pixel pass, which reads no
-        class): where there is no specular term, ``F`` is computed after the rays, and only
-        when one of them is free: a light every ray finds blocked adds ``π Le F · 0 = +0.0``
-        whatever ``F`` is, so the irradiance has the same bits and ``out_class`` is not
-        set. Most lights a pixel of a furnished interior traces are hidden (RenderPark's
-        office: ``F`` took a quarter of an edge sample's time).
+        light is hidden only where ``F > 0``). ``False`` (the per-pixel pass): where there is
+        no specular term, ``F`` is computed after the rays, and only when one of them is
+        free: a light every ray finds blocked adds ``π Le F · 0 = +0.0`` whatever ``F`` is,
+        so the irradiance has the same bits; ``out_class`` is then ``LIGHT_HIDDEN`` where a
+        sample of the light faces the point (``F`` itself is not computed). Most lights a
+        pixel of a furnished interior traces are hidden (RenderPark's office: ``F`` took a
+        quarter of an edge sample's time).
     """
     spec = ks[0] > 0.0 or ks[1] > 0.0 or ks[2] > 0.0
     norm_spec = (ns + 2.0) / (2.0 * np.pi)
@@ -334,7 +335,10 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
             continue
         if lazy:
             if wvis == 0.0:
-                continue        # every ray blocked: +0.0 whatever F is
+                # every ray blocked: +0.0 whatever F is. A sample of the light faces the
+                # point (wsum > 0), so some of it is above the horizon: hidden.
+                out_class[m] = LIGHT_HIDDEN
+                continue
             F = lambert_polygon(p[0], p[1], p[2], n[0], n[1], n[2], em_corners[m], cnt)
             if F <= 0.0:
                 continue

@@ -23,14 +23,14 @@ from __future__ import annotations
 import numpy as np
 
 from daskrad.kernels._jit import jit
-from daskrad.kernels.direct import irradiance_one
+from daskrad.kernels.direct import LIGHT_TRACE, irradiance_one
 from daskrad.kernels.grid import new_fan
 
 
 @jit
 def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_int, dl_dir,
                    dl_irr, em_corners, em_count, em_normal, em_radiance, em_area, samples,
-                   modes, probe=False, lambert_first=False, cache=True):
+                   modes, probe=False, lambert_first=False, cache=True, out_class=None):
     """Direct irradiance and Phong radiance at ray hits.
 
     Parameters
@@ -61,6 +61,11 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
         Each area light's shadow rays try the triangle that blocked its last ray first
         (:func:`daskrad.kernels.grid.any_hit_cached`; the hits of a tile come pixel by pixel,
         so the next is most often hidden by the same triangle): the same bits, faster.
+    out_class : (n, M) int8, optional
+        Receives each area light's class at each hit (``irradiance_one``'s ``out_class``:
+        ``LIGHT_VISIBLE`` where no shadow ray was blocked, ``LIGHT_HIDDEN`` where every ray
+        was, with probes the class the corner strata agreed on; ``LIGHT_TRACE`` otherwise,
+        and for a light ``modes`` skips or takes as visible).
 
     Returns ``H (n, 3)``, the irradiance (W per unit area), and ``S (n, 3)``, the Phong
     radiance ``Σ_lights Ks (Ns+2)/(2π) max(0, r·v)^Ns dH``.
@@ -69,13 +74,83 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
     H = np.zeros((n, 3))
     S = np.zeros((n, 3))
     fan = new_fan(grid, em_corners.shape[0] if cache else 0)   # a cache slot per area light
-    classes = np.zeros(em_corners.shape[0], np.int8)
-    for i in range(n):
-        irradiance_one(grid, fan, points[i], points[i], normals[i], off, seeds[i], pl_pos, pl_int,
-                       dl_dir, dl_irr, em_corners, em_count, em_normal, em_radiance, em_area,
-                       samples, views[i], ks[i], ns[i], modes[i], H[i], S[i], classes, probe,
-                       lambert_first)
+    if out_class is None:
+        classes = np.zeros(em_corners.shape[0], np.int8)
+        for i in range(n):
+            irradiance_one(grid, fan, points[i], points[i], normals[i], off, seeds[i], pl_pos,
+                           pl_int, dl_dir, dl_irr, em_corners, em_count, em_normal,
+                           em_radiance, em_area, samples, views[i], ks[i], ns[i], modes[i],
+                           H[i], S[i], classes, probe, lambert_first)
+    else:
+        for i in range(n):
+            irradiance_one(grid, fan, points[i], points[i], normals[i], off, seeds[i], pl_pos,
+                           pl_int, dl_dir, dl_irr, em_corners, em_count, em_normal,
+                           em_radiance, em_area, samples, views[i], ks[i], ns[i], modes[i],
+                           H[i], S[i], out_class[i], probe, lambert_first)
     return H, S
+
+
+@jit
+def pixel_modes(modes, elem, pixel, base_elem, base_class, own):
+    """The area lights' modes at an edge pixel's extra samples, from what the base samples
+    around it found.
+
+    An edge pixel (:func:`daskrad.render.render_tile_stats`) is sampled again at many
+    positions; most of its area lights shine on all of it or on none, and only the light or
+    the outline that made it an edge changes across it. An extra sample on element ``e``
+    takes a light as wholly visible or wholly hidden, without shadow rays, where every base
+    sample of its pixel lies on ``e`` and found the light so (``LIGHT_VISIBLE``: no shadow ray
+    blocked; ``LIGHT_HIDDEN``: every one; probes included), and so did every base sample of
+    the 8 neighbouring pixels that lies on ``e`` (a shadow's edge that flagged the pixel
+    from beside it, and may cross it between its samples, shows there).
+
+    Parameters
+    ----------
+    modes : (n, M) int8
+        The extra samples' modes from their elements (:func:`daskrad.render.light_modes`);
+        only ``LIGHT_TRACE`` entries change.
+    elem : (n,) int64
+        The element each extra sample hit.
+    pixel : (n,) int64
+        Its pixel, a row of ``base_elem``.
+    base_elem : (P, s) int64
+        The element each base sample hit where its direct light was computed (-1 elsewhere):
+        the pixel's own ``own`` samples first, then its neighbours'.
+    base_class : (P, s, M) int8
+        Each light's class at each base sample (:func:`direct_at_hits`' ``out_class``).
+    own : int
+        Base samples per pixel.
+
+    Returns ``(n, M) int8``: ``modes`` with the lights so agreed on taken as they were found.
+    """
+    out = modes.copy()
+    on = np.empty(base_elem.shape[1], np.int64)    # the base samples on the sample's element
+    for i in range(modes.shape[0]):
+        k = pixel[i]
+        cnt = 0
+        for s in range(base_elem.shape[1]):
+            if base_elem[k, s] == elem[i]:
+                on[cnt] = s
+                cnt += 1
+            elif s < own:
+                cnt = 0             # a sample of the pixel itself elsewhere: no verdict
+                break
+        if cnt == 0:
+            continue
+        for m in range(modes.shape[1]):
+            if modes[i, m] != LIGHT_TRACE:
+                continue
+            c = base_class[k, on[0], m]
+            if c == LIGHT_TRACE:
+                continue
+            same = True
+            for j in range(1, cnt):
+                if base_class[k, on[j], m] != c:
+                    same = False
+                    break
+            if same:
+                out[i, m] = c
+    return out
 
 
 @jit
