@@ -455,11 +455,13 @@ def test_light_modes_keep_the_bits_of_tracing_around_a_blocker_and_are_dropped_b
     assert np.array_equal(_render(capped)[0], image)
 
 
-@pytest.mark.parametrize("samples", [1, 2, 4])
-def test_the_per_pixel_pass_reports_the_vertex_pass_classes(samples):
+@pytest.mark.parametrize("samples, probe", [(1, False), (2, False), (4, False), (4, True)])
+def test_the_per_pixel_pass_reports_the_classes_of_lambert_first(samples, probe):
     # With Lambert's F after the rays, a light every ray finds blocked is still reported
-    # hidden (its F is not computed): the classes are those of the vertex pass, which
-    # computes F first, at every hit of the blade-and-plate scene in every orientation
+    # hidden (its F is not computed): the classes are those of computing F first, and with
+    # no probes those of the vertex pass, at every hit of the blade-and-plate scene in every
+    # orientation; a light the modes take as visible is reported visible, one they skip as
+    # TRACE
     from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_TRACE, LIGHT_VISIBLE, irradiance_points
     from daskrad.kernels.shade import direct_at_hits
 
@@ -470,14 +472,24 @@ def test_the_per_pixel_pass_reports_the_vertex_pass_classes(samples):
     nrm = rng.normal(size=p.shape) + np.array([0.0, 1.5, 0.0])
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
     seeds = np.arange(len(p), dtype=np.int64)
-    classes = np.full((len(p), 1), -1, np.int8)
-    direct_at_hits(run.grid, p, nrm, nrm, seeds, np.zeros((len(p), 3)), np.zeros(len(p)),
-                   1e-7, *run.lights, samples, np.full((len(p), 1), LIGHT_TRACE, np.int8),
-                   False, False, True, classes)
-    vertex = irradiance_points(run.grid, p, p, nrm, seeds, 1e-7, *run.lights, samples)[1]
-    assert np.array_equal(classes, vertex)
+    modes = np.full((len(p), 1), LIGHT_TRACE, np.int8)
+    modes[:60] = LIGHT_VISIBLE
+    modes[60:120] = LIGHT_HIDDEN
+    classes = {}
+    for first in (False, True):
+        classes[first] = np.full((len(p), 1), -1, np.int8)
+        direct_at_hits(run.grid, p, nrm, nrm, seeds, np.zeros((len(p), 3)), np.zeros(len(p)),
+                       1e-7, *run.lights, samples, modes, probe, first, True, classes[first])
+    assert np.array_equal(classes[False], classes[True])
+    got = classes[False]
+    assert (got[60:120] == LIGHT_TRACE).all()
+    visible = got[:60] == LIGHT_VISIBLE
+    assert visible.sum() > 20 and (got[:60][~visible] == LIGHT_TRACE).all()   # F = 0 there
+    if not probe:
+        vertex = irradiance_points(run.grid, p, p, nrm, seeds, 1e-7, *run.lights, samples)[1]
+        assert np.array_equal(got[120:], vertex[120:])
     for c in (LIGHT_TRACE, LIGHT_VISIBLE, LIGHT_HIDDEN):
-        assert (classes == c).sum() > 20
+        assert (got[120:] == c).sum() > 20
 
 
 def _pixel_modes_rule(modes, elem, pixel, base_elem, base_class, own):

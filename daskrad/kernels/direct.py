@@ -190,8 +190,9 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
         (``r`` the light direction mirrored about ``n``).
     out_class : (M,) int8
         Receives each area light's class at the point: ``LIGHT_VISIBLE`` when ``F > 0`` and
-        no shadow ray was blocked, ``LIGHT_HIDDEN`` when ``F > 0`` and every ray was,
-        ``LIGHT_TRACE`` otherwise.
+        no shadow ray was blocked, ``LIGHT_HIDDEN`` when ``F > 0`` and every ray was (with
+        ``lambert_first=False``: when a sample of the light faces the point and every ray
+        was blocked, ``F`` not computed), ``LIGHT_TRACE`` otherwise.
     probe : bool
         With ``samples >= PROBE_SIDE``, trace a light's four corner strata first; when all four
         face both ways and agree (all free, or all blocked), the other strata are taken as

@@ -63,9 +63,9 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
         so the next is most often hidden by the same triangle): the same bits, faster.
     out_class : (n, M) int8, optional
         Receives each area light's class at each hit (``irradiance_one``'s ``out_class``:
-        ``LIGHT_VISIBLE`` where no shadow ray was blocked, ``LIGHT_HIDDEN`` where every ray
-        was, with probes the class the corner strata agreed on; ``LIGHT_TRACE`` otherwise,
-        and for a light ``modes`` skips or takes as visible).
+        ``LIGHT_VISIBLE`` where no shadow ray was blocked or ``modes`` takes the light as
+        visible, ``LIGHT_HIDDEN`` where every ray was, with probes the class the corner
+        strata agreed on; ``LIGHT_TRACE`` otherwise and for a light ``modes`` skips).
 
     Returns ``H (n, 3)``, the irradiance (W per unit area), and ``S (n, 3)``, the Phong
     radiance ``Σ_lights Ks (Ns+2)/(2π) max(0, r·v)^Ns dH``.
