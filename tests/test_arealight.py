@@ -699,14 +699,49 @@ def test_vertex_classes_say_exactly_which_lights_are_wholly_visible_or_hidden(me
     np.testing.assert_allclose(H[settled, 0], (full * vis).sum(axis=1)[settled], rtol=1e-12)
     assert vis.any() and hid.any() and (other & (full > 0)).any()   # every class occurs
     if method == "hemisphere":
-        # the window settles each light alone: a light's class and part of H ignore the others
+        # patch by patch (no lamps), the window settles each light alone: a light's class and
+        # part of H ignore the others; the lamp's classes are the patches' where they say
+        # something (a lamp partly shadowed is traced though a patch of it may be free)
+        assert ctx.lamps is not None and len(ctx.lamps.corners) == 1
+        H_p, classes_p = direct.vertex_light(replace(ctx, lamps=None), 0, n)
+        said = classes != 0
+        assert np.array_equal(classes[said], classes_p[said]) and (classes_p[~said] != 0).any()
+        np.testing.assert_allclose(H_p[settled, 0], H[settled, 0], rtol=1e-12)
         for m in range(M):
-            one = replace(ctx, **{f: getattr(ctx, f)[m:m + 1] for f in (
+            one = replace(ctx, lamps=None, **{f: getattr(ctx, f)[m:m + 1] for f in (
                 "emitter_corners", "emitter_count", "emitter_normal", "emitter_radiance",
                 "emitter_area")})
             Hm, cm = direct.vertex_light(one, 0, n)
-            assert np.array_equal(cm[:, 0], classes[:, m])
-            np.testing.assert_allclose(Hm[vis[:, m], 0], full[vis[:, m], m], rtol=1e-12)
-            assert np.all(Hm[hid[:, m]] == 0.0)
-            pen = other[:, m] & (full[:, m] > 0)
+            assert np.array_equal(cm[:, 0], classes_p[:, m])
+            vis_m, hid_m = classes_p[:, m] == LIGHT_VISIBLE, classes_p[:, m] == LIGHT_HIDDEN
+            np.testing.assert_allclose(Hm[vis_m, 0], full[vis_m, m], rtol=1e-12)
+            assert np.all(Hm[hid_m] == 0.0)
+            pen = (classes_p[:, m] == 0) & (full[:, m] > 0)
             assert np.all((Hm[pen, 0] > 0) & (Hm[pen, 0] < full[pen, m] * (1 - 1e-12)))
+
+
+def test_an_emitting_polygon_split_into_patches_is_one_lamp_only_where_they_tile_it():
+    # The window method takes an emitting polygon whole (one search, one raster): its lamp is
+    # the patches' convex hull, counter-clockwise about their normal, where the patches tile
+    # a triangle or quad; two squares with a gap, or an L of three, stay three lamps
+    def square(x, z, s=1.0):
+        return [[x, 1, z], [x, 1, z + s], [x + s, 1, z + s], [x + s, 1, z]]   # faces -y
+
+    def lamps(squares, polygon):
+        corners = np.array(squares, float)
+        m = len(corners)
+        return direct.lamps_of(corners, np.full(m, 4, np.int64), np.tile([0.0, -1, 0], (m, 1)),
+                               np.tile([2.0, 2, 2], (m, 1)), np.full(m, 1.0),
+                               np.asarray(polygon))
+
+    one = lamps([square(0, 0), square(1, 0), square(0, 1), square(1, 1)], [5, 5, 5, 5])
+    assert len(one.corners) == 1 and one.count[0] == 4 and one.of.tolist() == [0] * 4
+    c = one.corners[0]
+    assert {tuple(p) for p in c} == {(0, 1, 0), (2, 1, 0), (2, 1, 2), (0, 1, 2)}
+    newell = sum(np.cross(c[i], c[(i + 1) % 4]) for i in range(4))
+    assert newell @ [0.0, -1, 0] == pytest.approx(8.0)          # area 4, the patches' side
+    assert lamps([square(0, 0), square(1.5, 0)], [3, 3]) is None            # a gap
+    assert lamps([square(0, 0), square(1, 0), square(0, 1)], [3, 3, 3]) is None   # an L
+    two = lamps([square(0, 0), square(1, 0), square(5, 5)], [1, 1, 2])      # two polygons
+    assert len(two.corners) == 2 and two.of.tolist() == [0, 0, 1]
+    assert np.array_equal(two.corners[1], np.array(square(5, 5), float))

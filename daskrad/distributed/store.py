@@ -888,7 +888,7 @@ def load_context(path: str, kind: str, token: str | None = None):
 def _known_types() -> dict:
     """The types a store's JSON may name: the task contexts and what they hold. Nothing else
     is ever built from a store (a crafted store cannot call an arbitrary function)."""
-    from daskrad.direct import DirectContext, Lights
+    from daskrad.direct import DirectContext, Lamps, Lights
     from daskrad.formfactor.shooting import ShootContext
     from daskrad.kernels.faces import Faces
     from daskrad.kernels.grid import Grid
@@ -897,7 +897,7 @@ def _known_types() -> dict:
     from daskrad.scene.types import Camera
 
     return {f"{t.__module__}:{t.__qualname__}": t
-            for t in (DirectContext, Lights, ShootContext, Grid, Faces, RenderContext,
+            for t in (DirectContext, Lamps, Lights, ShootContext, Grid, Faces, RenderContext,
                       GatherContext, Junctions, Camera, DirectState, Hierarchy, TVertices)}
 
 

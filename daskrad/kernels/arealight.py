@@ -991,3 +991,31 @@ def area_irradiance(grid, faces, points, normals, off, hz, em_corners, em_count,
                                           em_count, em_normal, em_radiance, resolution,
                                           edge_angle, SLABS)
     return H, classes
+
+
+@jit
+def patch_classes(points, normals, lamp_class, of, corners, count, normal):
+    """The classes ``(n, M) int8`` of the emitting patches at ``points (n, 3)`` (unit
+    ``normals``) from those of their lamps, ``lamp_class (n, P) int8`` (``of (M,)``: each
+    patch's lamp; ``corners (M, 4, 3)``, ``count``, ``normal``: the patches).
+
+    A lamp wholly visible (or wholly hidden) from a point is so in each of its patches; a
+    class is given only to a patch the point lies in front of with ``F > 0``, as
+    :func:`area_irradiance_stats` gives it, ``LIGHT_TRACE`` (0) elsewhere."""
+    n = points.shape[0]
+    out = np.zeros((n, of.shape[0]), np.int8)
+    for i in range(n):
+        p = points[i]
+        q = normals[i]
+        for m in range(of.shape[0]):
+            c = lamp_class[i, of[m]]
+            if c == 0:
+                continue
+            en = normal[m]
+            side = (en[0] * (p[0] - corners[m, 0, 0]) + en[1] * (p[1] - corners[m, 0, 1])
+                    + en[2] * (p[2] - corners[m, 0, 2]))
+            if side <= 0.0:
+                continue
+            if lambert_polygon(p[0], p[1], p[2], q[0], q[1], q[2], corners[m], count[m]) > 0.0:
+                out[i, m] = c
+    return out
