@@ -41,7 +41,8 @@ MARKER = "daskrad-warm.json"
 DEFAULT_SECONDS = 40
 
 _OBJ = """\
-# warmup scene: a box open at the front, an emitting panel, a block, a glossy wall, a mirror
+# warmup scene: a box open at the front, an emitting panel (two patches: one lamp), a block,
+# a glossy wall, a mirror
 mtllib warm.mtl
 v 0 0 0
 v 0 0 2
@@ -51,10 +52,10 @@ v 0 2 0
 v 0 2 2
 v 2 2 2
 v 2 2 0
-v 0.8 1.99 0.8
-v 0.8 1.99 1.2
-v 1.2 1.99 1.2
-v 1.2 1.99 0.8
+v 0.7 1.99 0.8
+v 0.7 1.99 1.2
+v 1.3 1.99 1.2
+v 1.3 1.99 0.8
 v 0.5 0 0.5
 v 0.5 0.6 0.5
 v 1.0 0.6 0.5
