@@ -30,6 +30,7 @@ from daskrad.kernels.arealight import area_irradiance, patch_classes
 from daskrad.kernels.direct import irradiance_points
 from daskrad.kernels.faces import Faces, no_faces
 from daskrad.kernels.grid import Grid
+from daskrad.kernels.hidden import polygon_outlines
 from daskrad.mesh import default_sizes
 from daskrad.mesh.refine import MIN_SIZE_DIVISOR, TVertices, refine
 from daskrad.mesh.types import Hierarchy
@@ -188,10 +189,10 @@ class Lamps(NamedTuple):
 #: so ``F V`` of the whole is the sum over its patches up to the raster's error, which grows
 #: with the window's size (an ``R × R`` raster over the whole instead of one per patch).
 #: ``benchmarks/bench_direct.py`` (step 2 alone, arms alternated, medians of 3): the Cornell
-#: box 0.114 → 0.085 s, at element size 7 0.908 → 0.695 s, RenderPark's office (16 lamps of
-#: 32 patches) 20.08 → 15.21 s. ``bench_arealight``: the Cornell box's penumbra vertices
-#: 2.2e-3 → 2.8e-3 relative RMS against the 1,024² window; its image against the path tracer
-#: 0.03792 → 0.03790 off the light.
+#: box 0.114 → 0.085 s, at element size 7 0.908 → 0.695 s, RenderPark's office converted
+#: (``graz.obj``, 16 lamps of 32 patches) 20.08 → 15.21 s. ``bench_arealight``: the
+#: Cornell box's penumbra vertices 2.2e-3 → 2.8e-3 relative RMS against the 1,024² window;
+#: its image against the path tracer 0.03792 → 0.03790 off the light.
 MERGE_LAMPS = True
 
 
@@ -222,7 +223,9 @@ def without_emitters(ctx: DirectContext) -> DirectContext:
 
 
 def lights_of(ctx: DirectContext) -> Lights:
-    """The :class:`Lights` of a direct-light context (the same lights the vertices saw)."""
+    """The :class:`Lights` of a direct-light context: its emitting patches, each a light of
+    the per-pixel pass (the window method at the vertices saw them as lamps, whose classes
+    map onto the patches)."""
     return Lights(*ctx.light_args, offset=float(ctx.offset), samples=int(ctx.samples))
 
 
@@ -302,70 +305,46 @@ def emitters(scene: Scene, h: Hierarchy) -> dict:
 def lamps_of(corners: np.ndarray, count: np.ndarray, normal: np.ndarray,
              radiance: np.ndarray, area: np.ndarray, polygon: np.ndarray) -> Lamps | None:
     """The emitting patches ``corners (M, 4, 3)`` (``count``, ``normal``, ``radiance``,
-    ``area``) of the polygons ``polygon (M,)`` as :class:`Lamps`: each polygon's patches
-    become one lamp, its outline the convex hull of their corners, where that hull has 3 or
-    4 corners and the area of the patches (within ``1e-9`` of it, so that they tile it);
-    otherwise, and for a polygon of one patch, each patch stays a lamp. ``None`` where no
-    polygon merges (the patches themselves)."""
-    out_c, out_n, out_r, of = [], [], [], np.empty(len(polygon), np.int64)
-    for pid in np.unique(polygon):
-        rows = np.flatnonzero(polygon == pid)
-        hull = _outline(corners[rows], count[rows], normal[rows[0]], area[rows].sum())
-        pieces = [hull] if len(rows) > 1 and hull is not None else [
-            corners[m, :count[m]] for m in rows]
-        for k, piece in enumerate(pieces):
-            of[rows if len(pieces) == 1 else rows[k]] = len(out_c)
-            out_c.append(piece)
-            out_n.append(normal[rows[k]])
-            out_r.append(radiance[rows[k]])
-    if len(out_c) == len(polygon):
+    ``area``) of the polygons ``polygon (M,)`` (non-decreasing: patches are stored polygon
+    by polygon) as :class:`Lamps`: each polygon's patches become one lamp, its outline the
+    patches' convex hull (:func:`daskrad.kernels.hidden.polygon_outlines`), where that hull
+    has 3 or 4 corners and the patches tile it (its area theirs, to ``1e-9``); otherwise,
+    and for a polygon of one patch, each patch stays a lamp. ``None`` where no polygon
+    merges (the patches themselves)."""
+    m = len(polygon)
+    if m == 0 or np.any(np.diff(polygon) < 0):
+        return None
+    pv = np.arange(4 * m, dtype=np.int64).reshape(m, 4)
+    pv[count == 3, 3] = -1
+    first = np.flatnonzero(np.r_[True, polygon[1:] != polygon[:-1]])
+    start = np.r_[first, m].astype(np.int64)
+    o_start, outline = polygon_outlines(np.ascontiguousarray(corners.reshape(-1, 3)), pv,
+                                        np.ascontiguousarray(area, np.float64),
+                                        np.ascontiguousarray(normal, np.float64),
+                                        np.arange(m, dtype=np.int64), start)
+    out_c, out_n, out_r, of = [], [], [], np.empty(m, np.int64)
+    for q in range(len(first)):
+        rows = np.arange(start[q], start[q + 1])
+        k = o_start[q + 1] - o_start[q]
+        if len(rows) > 1 and 3 <= k <= 4:
+            # one material and one plane: the patches' radiance and normal are the polygon's
+            of[rows] = len(out_c)
+            out_c.append(outline[o_start[q]:o_start[q + 1]])
+            out_n.append(normal[rows[0]])
+            out_r.append(radiance[rows[0]])
+            continue
+        for r in rows:
+            of[r] = len(out_c)
+            out_c.append(corners[r, :count[r]])
+            out_n.append(normal[r])
+            out_r.append(radiance[r])
+    if len(out_c) == m:
         return None
     n_c = np.array([len(c) for c in out_c], np.int64)
     full = np.array([np.concatenate([c, c[-1:].repeat(4 - len(c), axis=0)]) for c in out_c])
     return Lamps(np.ascontiguousarray(full, np.float64), n_c,
                  np.ascontiguousarray(out_n, np.float64),
                  np.ascontiguousarray(out_r, np.float64), of)
-
-
-def _outline(corners: np.ndarray, count: np.ndarray, normal: np.ndarray,
-             area: float) -> np.ndarray | None:
-    """The convex hull ``(k, 3)`` of the patches' corners, counter-clockwise about
-    ``normal``, when it has 3 or 4 corners and the patches' ``area``; else ``None``."""
-    pts = np.concatenate([c[:n] for c, n in zip(corners, count, strict=True)])
-    t1 = np.cross(normal, [1.0, 0.0, 0.0])
-    if np.linalg.norm(t1) < 0.5:
-        t1 = np.cross(normal, [0.0, 1.0, 0.0])
-    t1 /= np.linalg.norm(t1)
-    t2 = np.cross(normal, t1)
-    uv = np.column_stack([(pts - pts[0]) @ t1, (pts - pts[0]) @ t2])
-    size = np.ptp(uv, axis=0).max()
-    if not size > 0:
-        return None
-    order = np.lexsort((uv[:, 1], uv[:, 0]))
-    tol = 1e-9 * size * size
-
-    def chain(idx):
-        out: list[int] = []
-        for i in idx:
-            while len(out) >= 2:
-                a, b = uv[out[-2]], uv[out[-1]]
-                cross = (b[0] - a[0]) * (uv[i, 1] - a[1]) - (b[1] - a[1]) * (uv[i, 0] - a[0])
-                if cross > tol:
-                    break
-                out.pop()
-            out.append(i)
-        return out
-
-    lower, upper = chain(order), chain(order[::-1])
-    hull = lower[:-1] + upper[:-1]
-    if not 3 <= len(hull) <= 4:
-        return None
-    h2 = uv[hull]
-    hull_area = 0.5 * abs(np.dot(h2[:, 0], np.roll(h2[:, 1], -1))
-                          - np.dot(h2[:, 1], np.roll(h2[:, 0], -1)))
-    if not abs(hull_area - area) <= 1e-9 * area:
-        return None
-    return pts[hull]
 
 
 def has_lights(scene: Scene) -> bool:
@@ -388,8 +367,9 @@ def make_context(scene: Scene, h: Hierarchy, grid: Grid, samples: int = AREA_SAM
     alone.
 
     ``method`` is a key of :data:`AREA_METHODS` (default: ``Settings.area_method``), with
-    ``samples²`` shadow rays (``"rays"``) or an ``resolution²`` window raster
-    (``"hemisphere"``) per area light. An unknown name raises :class:`OptionError`.
+    ``samples²`` shadow rays (``"rays"``) per area light (emitting patch) or an
+    ``resolution²`` window raster (``"hemisphere"``) per lamp (emitting polygon,
+    :func:`lamps_of`). An unknown name raises :class:`OptionError`.
     """
     method = check_area_method(Settings.area_method if method is None else method)
     if int(resolution) < 2:
@@ -497,7 +477,7 @@ def _area_by_hemisphere(ctx: DirectContext, start: int, stop: int):
             float(ctx.offset), float(hz), lamps.corners, lamps.count, lamps.normal,
             lamps.radiance, int(ctx.area_resolution), math.radians(tolerances.EDGE_ANGLE_DEG))
         H += H_area
-        if lamps.of is not None:       # a lamp wholly visible or hidden: so are its patches
+        if lamps.of is not None and ctx.keep_classes:  # a lamp settled: so are its patches
             classes = patch_classes(ctx.area_points[start:stop], ctx.normals[start:stop],
                                     classes, lamps.of, ctx.emitter_corners, ctx.emitter_count,
                                     ctx.emitter_normal)
@@ -730,8 +710,9 @@ class DirectState(NamedTuple):
 #: The version of step 2's answer: a change of the direct pass or of the subdivision that
 #: changes any bit of a :class:`DirectState` must increase it, so that a resume computes step 2
 #: again instead of taking an older daskrad's (the store's checks cover the inputs and the
-#: settings, not the code).
-STATE_VERSION = 1
+#: settings, not the code; nor :data:`MERGE_LAMPS`, a module switch for benchmarks). 2: one
+#: lamp per emitting polygon in the window method (the thirty-third stop).
+STATE_VERSION = 2
 
 
 def state_of(light: DirectLight) -> DirectState | None:

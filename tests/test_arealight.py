@@ -674,9 +674,9 @@ def test_walking_only_the_rows_and_cells_the_pyramid_reaches_finds_the_same_cand
 
 @pytest.mark.parametrize("method", ["hemisphere", "rays"])
 def test_vertex_classes_say_exactly_which_lights_are_wholly_visible_or_hidden(method):
-    # The fully-hidden scene (a blocker between the floor and a 4-patch emitter): per vertex
-    # and emitter patch, LIGHT_VISIBLE exactly where that patch alone gives π Le F (V = 1),
-    # LIGHT_HIDDEN exactly where it gives 0 with F > 0, LIGHT_TRACE elsewhere (a penumbra,
+    # The fully-hidden scene (a blocker between the floor and a 4-patch emitter, one lamp):
+    # per vertex and emitter patch, LIGHT_VISIBLE only where that patch gives π Le F (V = 1),
+    # LIGHT_HIDDEN only where it gives 0 with F > 0, LIGHT_TRACE elsewhere (a penumbra,
     # or F = 0); the classes do not depend on the batching.
     from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_VISIBLE
 
@@ -745,3 +745,11 @@ def test_an_emitting_polygon_split_into_patches_is_one_lamp_only_where_they_tile
     two = lamps([square(0, 0), square(1, 0), square(5, 5)], [1, 1, 2])      # two polygons
     assert len(two.corners) == 2 and two.of.tolist() == [0, 0, 1]
     assert np.array_equal(two.corners[1], np.array(square(5, 5), float))
+    # a triangle in four (its midpoints): one lamp of three corners, the third repeated
+    a, b, c = np.array([0.0, 1, 0]), np.array([0.0, 1, 2]), np.array([2.0, 1, 0])
+    ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
+    tris = [[a, ab, ca, ca], [ab, b, bc, bc], [ca, bc, c, c], [ab, bc, ca, ca]]
+    tri = direct.lamps_of(np.array(tris), np.full(4, 3, np.int64), np.tile([0.0, -1, 0], (4, 1)),
+                          np.tile([2.0, 2, 2], (4, 1)), np.full(4, 0.5), np.zeros(4, np.int64))
+    assert tri.count.tolist() == [3] and np.array_equal(tri.corners[0, 3], tri.corners[0, 2])
+    assert {tuple(p) for p in tri.corners[0]} == {tuple(a), tuple(b), tuple(c)}
