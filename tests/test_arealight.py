@@ -753,3 +753,23 @@ def test_an_emitting_polygon_split_into_patches_is_one_lamp_only_where_they_tile
                           np.tile([2.0, 2, 2], (4, 1)), np.full(4, 0.5), np.zeros(4, np.int64))
     assert tri.count.tolist() == [3] and np.array_equal(tri.corners[0, 3], tri.corners[0, 2])
     assert {tuple(p) for p in tri.corners[0]} == {tuple(a), tuple(b), tuple(c)}
+
+
+def test_a_patch_takes_its_lamps_class_only_where_it_faces_the_point():
+    # A lamp of two patches on a ceiling (y = 1, facing down), x in [0, 1] and [1, 2]. From a
+    # point whose tangent plane is x = 1 (normal -x) only the first patch is above the
+    # horizon: the lamp's class goes to it, the second (F = 0) stays LIGHT_TRACE; above the
+    # ceiling both are behind; a lamp with no class gives none
+    from daskrad.kernels.arealight import patch_classes
+    from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_TRACE, LIGHT_VISIBLE
+
+    corners = np.array([[[0.0, 1, 0], [0, 1, 1], [1, 1, 1], [1, 1, 0]],
+                        [[1.0, 1, 0], [1, 1, 1], [2, 1, 1], [2, 1, 0]]])
+    count, down = np.array([4, 4], np.int64), np.tile([0.0, -1, 0], (2, 1))
+    of = np.array([0, 0], np.int64)
+    points = np.array([[1.0, 0.5, 0.5], [1.5, 0.2, 0.5], [1.0, 1.5, 0.5], [1.5, 0.2, 0.5]])
+    normals = np.array([[-1.0, 0, 0], [0, 1, 0], [0, 1, 0], [0, 1, 0]])
+    lamp = np.array([[LIGHT_VISIBLE], [LIGHT_HIDDEN], [LIGHT_VISIBLE], [LIGHT_TRACE]], np.int8)
+    got = patch_classes(points, normals, lamp, of, corners, count, down)
+    assert got.tolist() == [[LIGHT_VISIBLE, LIGHT_TRACE], [LIGHT_HIDDEN, LIGHT_HIDDEN],
+                            [LIGHT_TRACE, LIGHT_TRACE], [LIGHT_TRACE, LIGHT_TRACE]]
