@@ -493,7 +493,8 @@ def render_tile_stats(ctx: RenderContext, rows: slice, cols: slice
                             ctx.edge_spp)
         verdicts = None
         if record:
-            # the edge pixels' own base samples: rows of L in (big tile, sample) order
+            # the base samples of each edge pixel and its 8 neighbours: rows of L in (big
+            # tile, sample) order; neighbours outside the image count as no element
             rr = (r + dr)[:, None] + NEIGHBOURS[:, 0]
             cc = (c + dc)[:, None] + NEIGHBOURS[:, 1]
             inside = (rr >= 0) & (rr < bh) & (cc >= 0) & (cc < bw)
