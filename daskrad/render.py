@@ -649,8 +649,8 @@ def _radiance(ctx: RenderContext, o: np.ndarray, d: np.ndarray, seeds: np.ndarra
             ew = elem[work]
             p = o[w] + t[w, None] * d[w]
             H, S, C = _direct_at(ctx, lights, p, ew, -d[w], seeds[w], ks[work],
-                                 None if verdicts is None else verdicts.pixel[w], verdicts,
-                                 stats)
+                                 None if verdicts is None else
+                                 verdicts._replace(pixel=verdicts.pixel[w]), stats)
             if record is not None:
                 record["elem"][w] = ew
                 record["classes"][w] = C
@@ -699,15 +699,14 @@ LAMBERT_AFTER_RAYS = True
 
 def _direct_at(ctx: RenderContext, lights: Lights, p: np.ndarray, elem: np.ndarray,
                views: np.ndarray, seeds: np.ndarray, ks: np.ndarray,
-               pixel: np.ndarray | None = None, verdicts: Verdicts | None = None,
-               stats: dict | None = None):
+               verdicts: Verdicts | None = None, stats: dict | None = None):
     """:func:`direct_at_hits` at hits ``p (n, 3)`` on elements ``elem (n,)``: ``(H, S,
     classes (n, M) int8)``. Hits on an element of ``ctx.elem_unshadowed`` are evaluated
     without occluders (no shadow ray of theirs can be blocked, so the bits are those of
     tracing them), the rest through the grid. Each hit's value depends on the hit alone (and
-    with ``verdicts``, on its pixel ``pixel (n,)``'s base samples), so the split changes
-    nothing but the time. ``stats["verdicts"]`` counts the hit-light pairs the verdicts
-    settled."""
+    with ``verdicts``, whose ``pixel`` is (n,) for these hits, on its pixel's base samples),
+    so the split changes nothing but the time. ``stats["verdicts"]`` counts the hit-light
+    pairs the verdicts settled."""
     n_lights = len(lights.emitter_corners)
 
     def run(grid, sel):
@@ -718,7 +717,7 @@ def _direct_at(ctx: RenderContext, lights: Lights, p: np.ndarray, elem: np.ndarr
             raise ValueError(f"light modes of shape {modes.shape} for {n_lights} area lights")
         if verdicts is not None:
             taken = pixel_modes(np.ascontiguousarray(modes), np.ascontiguousarray(e),
-                                np.ascontiguousarray(pixel[sel]), verdicts.base_elem,
+                                np.ascontiguousarray(verdicts.pixel[sel]), verdicts.base_elem,
                                 verdicts.base_class, verdicts.own)
             if stats is not None:
                 stats["verdicts"] += int((taken != modes).sum())

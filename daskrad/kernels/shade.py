@@ -74,19 +74,15 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
     H = np.zeros((n, 3))
     S = np.zeros((n, 3))
     fan = new_fan(grid, em_corners.shape[0] if cache else 0)   # a cache slot per area light
-    if out_class is None:
-        classes = np.zeros(em_corners.shape[0], np.int8)
-        for i in range(n):
-            irradiance_one(grid, fan, points[i], points[i], normals[i], off, seeds[i], pl_pos,
-                           pl_int, dl_dir, dl_irr, em_corners, em_count, em_normal,
-                           em_radiance, em_area, samples, views[i], ks[i], ns[i], modes[i],
-                           H[i], S[i], classes, probe, lambert_first)
+    if out_class is None:       # pruned at compile time: one specialization each
+        classes = np.zeros((n, em_corners.shape[0]), np.int8)
     else:
-        for i in range(n):
-            irradiance_one(grid, fan, points[i], points[i], normals[i], off, seeds[i], pl_pos,
-                           pl_int, dl_dir, dl_irr, em_corners, em_count, em_normal,
-                           em_radiance, em_area, samples, views[i], ks[i], ns[i], modes[i],
-                           H[i], S[i], out_class[i], probe, lambert_first)
+        classes = out_class
+    for i in range(n):
+        irradiance_one(grid, fan, points[i], points[i], normals[i], off, seeds[i], pl_pos,
+                       pl_int, dl_dir, dl_irr, em_corners, em_count, em_normal, em_radiance,
+                       em_area, samples, views[i], ks[i], ns[i], modes[i], H[i], S[i],
+                       classes[i], probe, lambert_first)
     return H, S
 
 
