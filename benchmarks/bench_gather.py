@@ -22,7 +22,9 @@ measured on the same junction vertices, in one run:
   in-process on every core) with the view's gather computed ahead on the cores the solve
   leaves idle (:data:`daskrad.render.GATHER_AHEAD`) and in the render, alternated ``--runs``
   times: medians of the solve's and the render's seconds and of their sum, and whether the
-  two arms' images are the same bits.
+  two arms' images are the same bits; ``--workers N ...`` adds the Cornell box at
+  :data:`CLUSTER_ELEMENT_SIZE` (~73,000 elements) on a LocalCluster of ``N`` thread workers,
+  where the client's thread computes the gather ahead (``--cluster-runs`` alternated runs).
 
 Scenes: the bundled Cornell box and lit room, and ``--scene PATH`` (e.g. RenderPark's MGF
 scenes converted to OBJ, which are not in the repository: docs/references.md; ``--shots``
@@ -30,8 +32,9 @@ caps their solves). A scene of more than :data:`daskrad.render.DISC_POLYGONS` po
 triangles gathers by rays in a run, but both are measured here.
 
 ``python -m benchmarks.bench_gather [--scene PATH ...] [--shots N] [--repeat N] [--runs N]
-[--sides R ...]`` (``--sides``: the disc's error and time at these sides too); writes
-``benchmarks/results/gather.json``.
+[--sides R ...] [--workers N ...] [--cluster-runs N] [--ahead-only]`` (``--sides``: the disc's
+error and time at these sides too; ``--ahead-only``: the ahead table alone); writes
+``benchmarks/results/gather.json`` (``gather_ahead.json`` with ``--ahead-only``).
 """
 
 from __future__ import annotations
@@ -59,6 +62,8 @@ from daskrad.settings import Settings
 
 RESULTS = Path(__file__).parent / "results"
 SCENES = Path(__file__).parent.parent / "scenes"
+#: The element size of the ahead table's cluster runs: the Cornell box at ~73,000 elements.
+CLUSTER_ELEMENT_SIZE = 7.0
 #: The disc side of the error's reference: ~7,850 directions a vertex.
 REFERENCE_SIDE = 100
 #: The rays per side of the error's other reference: 4,096 a vertex.
@@ -183,9 +188,15 @@ def image(path: Path, repeat: int) -> dict:
     return out
 
 
-def ahead(path: Path, runs: int) -> dict:
-    """Whole warm runs of ``path`` (defaults), the gather computed ahead and in the render,
-    alternated ``runs`` times after one warm-up run of each: medians and the bits."""
+def ahead(path: Path, runs: int, workers: int = 0, element_size: float | None = None
+          ) -> dict:
+    """Whole warm runs of ``path`` (defaults; ``workers``: on a LocalCluster of that many
+    thread workers, started by each run; ``element_size``), the gather computed ahead and in
+    the render, alternated ``runs`` times after one warm-up run of each: medians and the
+    bits."""
+    opts: dict = {"workers": workers, "dashboard": "127.0.0.1:0"}
+    if element_size is not None:
+        opts["element_size"] = element_size
     seconds: dict = {True: [], False: []}
     pictures: dict = {}
     before = render.GATHER_AHEAD
@@ -195,7 +206,7 @@ def ahead(path: Path, runs: int) -> dict:
                 for arm in (False, True):
                     render.GATHER_AHEAD = arm
                     out = Path(tmp) / f"{n}-{int(arm)}.exr"
-                    report = run(path, out, Settings(), progress=False)
+                    report = run(path, out, Settings(**opts), progress=False)
                     pictures[arm] = read_exr(out)
                     if n:
                         seconds[arm].append(report["seconds"])
@@ -207,7 +218,9 @@ def ahead(path: Path, runs: int) -> dict:
             "solve_render": statistics.median(r["solve"] + r["render"] for r in rows)}
 
     on, off = medians(seconds[True]), medians(seconds[False])
-    return {"scene": path.name, "runs": runs, "ahead": on, "in_render": off,
+    return {"scene": path.name, "runs": runs, "workers": workers,
+            "element_size": element_size, "elements": report["counts"]["elements"],
+            "ahead": on, "in_render": off,
             "speedup": off["solve_render"] / on["solve_render"],
             "same_bits": bool(np.array_equal(pictures[True], pictures[False]))}
 
@@ -222,13 +235,50 @@ def main(argv: list[str] | None = None) -> dict:
                         help="also the disc at these sides (error, worst vertex, seconds)")
     parser.add_argument("--runs", type=int, default=8,
                         help="alternated whole runs of each arm of the ahead table")
+    parser.add_argument("--workers", type=int, nargs="*", default=[],
+                        help="also the ahead table's whole runs of the Cornell box at "
+                             f"element size {CLUSTER_ELEMENT_SIZE} on a LocalCluster of "
+                             "these many thread workers")
+    parser.add_argument("--cluster-runs", type=int, default=3,
+                        help="alternated whole runs of each arm on a cluster")
+    parser.add_argument("--ahead-only", action="store_true",
+                        help="only the ahead table")
     args = parser.parse_args([] if argv is None else argv)
     bundled = [SCENES / "cornell_box.obj", SCENES / "lit_room.obj"]
-    table = [rows(p, None, args.repeat, tuple(args.sides)) for p in bundled]
-    table += [rows(p, args.shots, args.repeat, tuple(args.sides)) for p in args.scene]
-    images = [image(p, args.repeat) for p in bundled]
+    table, images = [], []
+    if not args.ahead_only:
+        table = [rows(p, None, args.repeat, tuple(args.sides)) for p in bundled]
+        table += [rows(p, args.shots, args.repeat, tuple(args.sides)) for p in args.scene]
+        images = [image(p, args.repeat) for p in bundled]
     aheads = [ahead(p, args.runs) for p in bundled]
+    aheads += [ahead(bundled[0], args.cluster_runs, n, CLUSTER_ELEMENT_SIZE)
+               for n in args.workers]
 
+    if not args.ahead_only:
+        _print_rows(table, images, args)
+    print(f"\nwhole warm runs, defaults, every core: the view's gather ahead (during the "
+          f"solve) and in the render, medians of {args.runs} alternated ({args.cluster_runs} "
+          "on a LocalCluster of thread workers, w: how many)")
+    print(f"{'scene':<22}{'elements':>9}{'solve':>8}{'render':>8}{'sum':>8}   {'solve':>8}"
+          f"{'render':>8}{'sum':>8}{'x':>7}  same bits")
+    for r in aheads:
+        a, b = r["in_render"], r["ahead"]
+        name = r["scene"] + (f" w{r['workers']}" if r["workers"] else "")
+        print(f"{name:<22}{r['elements']:>9,}{a['solve']:>8.3f}{a['render']:>8.3f}"
+              f"{a['solve_render']:>8.3f}   {b['solve']:>8.3f}{b['render']:>8.3f}"
+              f"{b['solve_render']:>8.3f}{r['speedup']:>7.2f}  {r['same_bits']}")
+    result = {"repeat": args.repeat, "reference_side": REFERENCE_SIDE,
+              "reference_rays": REFERENCE_RAYS,
+              "disc_side": render.DISC_SIDE, "disc_side_simple": render.DISC_SIDE_SIMPLE,
+              "disc_simple": render.DISC_SIMPLE, "gather_side": render.GATHER_SIDE,
+              "rows": table, "images": images, "ahead": aheads}
+    RESULTS.mkdir(exist_ok=True)
+    name = "gather_ahead.json" if args.ahead_only else "gather.json"
+    (RESULTS / name).write_text(json.dumps(result, indent=2))
+    return result
+
+
+def _print_rows(table: list[dict], images: list[dict], args) -> None:
     print("junction gather, one thread: seconds (medians of "
           f"{args.repeat}) and per-vertex error against the mean of a disc of side "
           f"{REFERENCE_SIDE} and {REFERENCE_RAYS}² rays (gap: disc − rays references)")
@@ -267,23 +317,6 @@ def main(argv: list[str] | None = None) -> dict:
                 line += (f" (rel RMS {m['relative_rms']:.5f}, off the light "
                          f"{m['relative_rms_off_light']:.5f})")
         print(line)
-    print(f"\nwhole warm runs, defaults, every core: the view's gather ahead (during the "
-          f"solve) and in the render, medians of {args.runs} alternated")
-    print(f"{'scene':<16}{'solve':>8}{'render':>8}{'sum':>8}   {'solve':>8}{'render':>8}"
-          f"{'sum':>8}{'x':>7}  same bits")
-    for r in aheads:
-        a, b = r["in_render"], r["ahead"]
-        print(f"{r['scene']:<16}{a['solve']:>8.3f}{a['render']:>8.3f}{a['solve_render']:>8.3f}"
-              f"   {b['solve']:>8.3f}{b['render']:>8.3f}{b['solve_render']:>8.3f}"
-              f"{r['speedup']:>7.2f}  {r['same_bits']}")
-    result = {"repeat": args.repeat, "reference_side": REFERENCE_SIDE,
-              "reference_rays": REFERENCE_RAYS,
-              "disc_side": render.DISC_SIDE, "disc_side_simple": render.DISC_SIDE_SIMPLE,
-              "disc_simple": render.DISC_SIMPLE, "gather_side": render.GATHER_SIDE,
-              "rows": table, "images": images, "ahead": aheads}
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "gather.json").write_text(json.dumps(result, indent=2))
-    return result
 
 
 if __name__ == "__main__":

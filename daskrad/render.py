@@ -1628,15 +1628,11 @@ class GatherAhead:
 def gather_ahead(scene: Scene, light: DirectLight, settings: Settings, cam: Camera,
                  executor) -> GatherAhead | None:
     """Start the junction gather of the view ``cam`` on the cores the solve leaves idle,
-    while it runs (``executor.ahead``, an idle-priority thread in-process; None when the
-    executor starts nothing, or the run has no junction gather): the gather reads the mesh
-    and its direct context only, never a radiance (:class:`GatherPlan`). :func:`image` then
-    takes it (:func:`for_view`).
-
-    Not on a cluster: the gather's tasks sent at a Dask priority below the rows' took from
-    the solve what they spared the render (the Cornell box at 73,063 elements, 2 thread
-    workers, medians of 2: solve 3.60 → 4.92 s, render 2.12 → 0.87 s, the run 6.83 → 6.93 s;
-    1 worker 9.97 → 9.64 s)."""
+    while it runs (``executor.ahead``: an idle-priority thread of this process, the client's
+    with Dask, :class:`daskrad.distributed.executor.Ahead`; None when the executor starts
+    nothing, or the run has no junction gather): the gather reads the mesh and its direct
+    context only, never a radiance (:class:`GatherPlan`). :func:`image` then takes it
+    (:func:`for_view`)."""
     start = getattr(executor, "ahead", None)
     if start is None or not GATHER_AHEAD or not settings.per_pixel \
             or light.irradiance is None or light.context is None:

@@ -122,8 +122,9 @@ def test_the_result_never_waits_for_the_idle_thread():
     ex = InProcess(threads=2)
     got = []
     try:
-        work = Ahead(lambda: "plan", lambda p: p + "-ctx", lambda p: ranges,
-                     _blocking_task(release, started, "daskrad-ahead"), ex.map)
+        task = _blocking_task(release, started, "daskrad-ahead")
+        work = Ahead(lambda: "plan", lambda p: p + "-ctx", lambda p: ranges, task,
+                     ex.run_ranges(task))
         assert started.wait(timeout=60)        # the idle thread is inside the first range
         asking = threading.Thread(target=lambda: got.append(work.result()))
         asking.start()
@@ -143,7 +144,7 @@ def test_a_plan_that_fails_raises_where_it_is_read():
     def plan():
         raise ValueError("no plan")
 
-    work = Ahead(plan, lambda p: p, lambda p: [(0, 1)], lambda c, a, b: a, lambda f, x: [])
+    work = Ahead(plan, lambda p: p, lambda p: [(0, 1)], lambda c, a, b: a, lambda c, x: [])
     with pytest.raises(ValueError, match="no plan"):
         work.plan()
     with pytest.raises(ValueError, match="no plan"):
@@ -172,17 +173,38 @@ def test_the_work_ahead_ends_after_the_range_it_is_in(monkeypatch, how):
         ex.close()
 
 
-def test_a_cluster_starts_nothing_ahead(solved, cluster_client, tmp_path):
-    # measured not to pay on a cluster (render.gather_ahead): the render gathers
+@pytest.mark.parametrize("finish", [True, False], ids=["all ahead", "asked at once"])
+def test_a_cluster_client_computes_the_gather_ahead_with_the_same_bits(
+        solved, cluster_client, tmp_path, monkeypatch, finish):
+    # the client's thread computes the ranges ahead; those it has not finished when the
+    # render asks go to the workers as gather tasks: the same bits either way
     from daskrad.distributed.dask_executor import DaskExecutor
     from daskrad.distributed.store import Store
 
-    scene, light, _, _ = solved
+    scene, light, sol, plain = solved
+    monkeypatch.setattr(executor, "idle_priority", lambda: True)
     ex = DaskExecutor(cluster_client, Store(tmp_path / "a.zarr", SMALL).open())
+    sent = []
+    gather = ex.gather
+    monkeypatch.setattr(ex, "gather", lambda ctx, ranges: sent.append(ranges) or
+                        gather(ctx, ranges))
     try:
-        assert render.gather_ahead(scene, light, SMALL, render.camera(scene, SMALL), ex) is None
+        cam = render.camera(scene, SMALL)
+        ahead = render.gather_ahead(scene, light, SMALL, cam, ex)
+        assert ahead is not None
+        if finish:
+            assert ahead.join(timeout=60)
+        image = render.image(scene, light, sol, SMALL, ex, cam, ahead)
     finally:
         ex.close()
+    done, ranges = ahead.progress()
+    assert ranges > 1 and 1 <= done <= ranges
+    if finish:
+        assert done == ranges and not sent          # the workers gathered nothing
+    else:      # the workers had the rest, and only the rest (and the range the thread
+        # was in when the render asked, which it may have finished since)
+        assert ranges - done <= sum(len(r) for r in sent) <= ranges - done + 1
+    np.testing.assert_array_equal(image.pixels, plain.pixels)
 
 
 def test_without_idle_priority_the_thread_stops_after_its_first_range(monkeypatch):
@@ -191,8 +213,10 @@ def test_without_idle_priority_the_thread_stops_after_its_first_range(monkeypatc
     monkeypatch.setattr(executor, "idle_priority", lambda: False)
     ex = InProcess(threads=2)
     try:
+        def task(ctx, a, b):
+            return (a, b)
         work = Ahead(lambda: 0, lambda p: p, lambda p: [(i, i + 1) for i in range(20)],
-                     lambda ctx, a, b: (a, b), ex.map)
+                     task, ex.run_ranges(task))
         assert work.join(timeout=60)
         assert work.progress() == (1, 20)
         assert work.result() == [(i, i + 1) for i in range(20)]

@@ -32,6 +32,7 @@ import numpy as np
 
 from daskrad import render
 from daskrad.distributed import worker
+from daskrad.distributed.executor import Ahead, ahead_task
 from daskrad.distributed.memory import peak_mib, physical_memory
 from daskrad.distributed.store import Store
 from daskrad.errors import OptionError
@@ -166,6 +167,7 @@ class DaskExecutor:
         self.geometry = None               # (generation, token) of the current geometry
         self._forget_prefetched()
         self._probed = False
+        self._started: list[Ahead] = []    # work started ahead (ahead), stopped by close
         self._phase = (None, -float("inf"))
         # the dashboard page shows a phase from the first second: the mesh is built next
         self.phase("preprocessing", force=True)
@@ -338,6 +340,21 @@ class DaskExecutor:
             lambda n, item, token: f"gather-{generation}-{n}-{item[0]}-{token}", "rendering",
             "junction gather: ")
 
+    def ahead(self, kind: str, plan, context_of, ranges_of) -> Ahead:
+        """Start the ``kind`` tasks (:func:`daskrad.distributed.executor.ahead_task`) on a
+        thread of this process, the client's, that runs only where one of its machine's cores
+        is idle (:class:`~daskrad.distributed.executor.Ahead`): the client applies the shots
+        in order and leaves its machine's cores mostly idle while the workers compute rows, or
+        shares them with thread workers that wait on it between batches. ``result()`` sends
+        what it has not done to the workers (:meth:`gather`). Not as Dask tasks: sent at a
+        priority below the rows', they took from the solve what they spared the render (the
+        Cornell box at 73,063 elements, 2 thread workers, medians of 2: solve 3.60 → 4.92 s,
+        render 2.12 → 0.87 s, the run 6.83 → 6.93 s)."""
+        runs = {"gather": self.gather}
+        work = Ahead(plan, context_of, ranges_of, ahead_task(kind), runs[kind])
+        self._started.append(work)
+        return work
+
     def _context_tasks(self, kind: str, ctx, generation: int, task, items: list, key,
                        phase: str, what: str = "") -> list:
         """``task(store path, generation, token, *item)`` for every item as futures, their
@@ -400,6 +417,9 @@ class DaskExecutor:
         return self.client.gather(futures)
 
     def close(self) -> None:
+        for work in self._started:
+            work.stop()
+        self._started = []
         try:        # the last progress reaches the page before the client goes
             self._publisher.close()
         finally:    # and the cluster is closed whatever the publisher or a Ctrl-C did

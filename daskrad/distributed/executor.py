@@ -14,8 +14,9 @@ Both executors expose the same calls, so the pipeline is written once:
   :func:`daskrad.direct.vertex_light`, one per vertex range, in order;
 - ``gather(gather_ctx, ranges)`` → list of the junction gather's operator rows
   (:func:`daskrad.render.gather_vertices`), one per range of junction vertices, in order;
-- ``ahead(kind, plan, context_of, ranges_of)`` (in-process only) → :class:`Ahead`: ``kind``
-  tasks that read geometry alone, started on the cores the solve leaves idle
+- ``ahead(kind, plan, context_of, ranges_of)`` → :class:`Ahead`: ``kind`` tasks that read
+  geometry alone, started on the cores the solve leaves idle (the client's machine's, with
+  Dask)
   (``"gather"``: the junction gather's operator rows, :func:`daskrad.render.gather_ahead`);
 - ``memory()`` → peak memory of the client and of every worker, and the row caches' use;
 - ``publish(key, value)``: progress for the dashboard (a no-op here);
@@ -152,16 +153,20 @@ class InProcess:
         return self.map(lambda r: render.gather_vertices(ctx, r[0], r[1]), ranges)
 
     def ahead(self, kind: str, plan, context_of, ranges_of) -> Ahead | None:
-        """Start the ``kind`` tasks (``"gather"``: :func:`daskrad.render.gather_vertices`)
-        ``task(context_of(p), a, b)`` over ``ranges_of(p)`` of ``p = plan()`` on a thread that
-        runs only where a core is idle (:class:`Ahead`); ``result()`` runs what it has not
-        done on this executor's threads. None with one thread: it was asked to take one
-        core."""
-        task = {"gather": render.gather_vertices}[kind]
+        """Start the ``kind`` tasks (:func:`ahead_task`) ``task(context_of(p), a, b)`` over
+        ``ranges_of(p)`` of ``p = plan()`` on a thread that runs only where a core is idle
+        (:class:`Ahead`); ``result()`` runs what it has not done on this executor's threads.
+        None with one thread: it was asked to take one core."""
+        task = ahead_task(kind)
         if self.threads == 1:
             return None
-        self._started.append(Ahead(plan, context_of, ranges_of, task, self.map))
+        self._started.append(Ahead(plan, context_of, ranges_of, task, self.run_ranges(task)))
         return self._started[-1]
+
+    def run_ranges(self, task):
+        """``run(ctx, ranges)``: ``[task(ctx, a, b) for a, b in ranges]`` on this executor's
+        threads (what :class:`Ahead` runs the ranges it has not finished with)."""
+        return lambda ctx, ranges: self.map(lambda r: task(ctx, *r), ranges)
 
     def memory(self) -> dict:
         """Peak memory of this process (MiB) and the row cache's use and budget (no
@@ -216,10 +221,16 @@ def idle_priority() -> bool:
     return True
 
 
+def ahead_task(kind: str):
+    """The task of the ``kind`` of work :meth:`InProcess.ahead` (and the Dask executor's)
+    may start: ``"gather"``, :func:`daskrad.render.gather_vertices`."""
+    return {"gather": render.gather_vertices}[kind]
+
+
 class Ahead:
     """Geometry-only work computed on an idle core while the solve runs
-    (:meth:`InProcess.ahead`; the junction gather's operator, whose tasks read the mesh and
-    never a radiance).
+    (:meth:`InProcess.ahead`, and the Dask executor's on the client's machine; the junction
+    gather's operator, whose tasks read the mesh and never a radiance).
 
     A thread computes ``p = plan()`` at once (at the normal priority: the render waits for
     the plan, :meth:`plan`), then takes the ranges ``ranges_of(p)`` one at a time in order
@@ -230,13 +241,14 @@ class Ahead:
     store's writes and every other thread of the machine leave one free. Where a thread
     cannot be given that priority (not Linux, or refused), it stops after the first range.
 
-    :meth:`result` stops it and runs the ranges it has not finished through ``run`` (the
-    executor's threads, at the normal priority), one still running included: every task is
-    a pure function of its range, so computing one twice gives the same bits, and the render
-    never waits on the idle thread. The results are those of running every range through
-    ``run``. What the idle thread may still hold while it is starved is the GIL for the
-    microseconds between two kernel calls: a thread that wants it then waits until the
-    scheduler runs the idle thread again, at the latest when a core falls idle.
+    :meth:`result` stops it and runs the ranges it has not finished through
+    ``run(context_of(p), ranges)`` (the executor's threads at the normal priority, or its
+    tasks on a cluster), one still running included: every task is a pure function of its
+    range, so computing one twice gives the same bits, and the render never waits on the idle
+    thread. The results are those of running every range through ``run``. What the idle
+    thread may still hold while it is starved is the GIL for the microseconds between two
+    kernel calls: a thread that wants it then waits until the scheduler runs the idle thread
+    again, at the latest when a core falls idle.
     """
 
     def __init__(self, plan, context_of, ranges_of, task, run):
@@ -299,11 +311,9 @@ class Ahead:
             done = dict(self._done)
         missing = [i for i in range(len(self._ranges)) if i not in done]
         if missing:
-            context_of, task, run_on = self._fns
-            ctx = context_of(p)
-            ranges = self._ranges
-            for i, value in zip(missing, run_on(lambda i: task(ctx, *ranges[i]), missing),
-                                strict=True):
+            context_of, _, run = self._fns
+            values = run(context_of(p), [self._ranges[i] for i in missing])
+            for i, value in zip(missing, values, strict=True):
                 done[i] = value
         return [done[i] for i in range(len(self._ranges))]
 
