@@ -1365,6 +1365,13 @@ class GatherOperator(NamedTuple):
                               np.concatenate([p.weights for p in parts]),
                               np.concatenate([p.excluded for p in parts]))
 
+    def rows(self, start: int, stop: int) -> GatherOperator:
+        """Its rows ``[start, stop)``: what :func:`gather_vertices` gives for those vertices
+        (a vertex's rows do not depend on the range it is computed in)."""
+        lo, hi = self.indptr[start], self.indptr[stop]
+        return GatherOperator(self.indptr[start:stop + 1] - lo, self.cols[lo:hi],
+                              self.weights[lo:hi], self.excluded[start:stop])
+
     def mean_radiance(self, radiance: np.ndarray) -> np.ndarray:
         """``(n, 3)``: ``G · radiance`` (no emission taken off)."""
         from daskrad.kernels.gather import apply_operator
@@ -1594,7 +1601,31 @@ def gather_operator_of(plan: GatherPlan, executor=None) -> GatherOperator | None
 #: Junction vertices per range of a gather computed ahead (:func:`gather_ahead`): a range
 #: the render asks for while it is still being computed on an idle core is computed again
 #: (the same bits), so short ranges waste little (~4 ms at the Cornell box's ~135 µs a vertex).
+#: A cluster is sent the ranges left in tasks of :func:`gather_batch` (:func:`gather_merged`).
 AHEAD_BATCH = 32
+
+
+def gather_merged(gctx: GatherContext, ranges: list[tuple[int, int]], executor
+                  ) -> list[GatherOperator]:
+    """``[gather_vertices(gctx, a, b) for a, b in ranges]`` as ``executor.gather`` tasks of
+    :func:`gather_batch` vertices: runs of adjacent ranges go as one task, whose operator is
+    cut back into theirs (:meth:`GatherOperator.rows`; a vertex's rows do not depend on the
+    range). A Dask task costs the scheduler and the client milliseconds, so the ranges a
+    gather computed ahead left (:data:`AHEAD_BATCH` vertices each) are not sent one by one."""
+    size = gather_batch(sum(b - a for a, b in ranges), executor)
+    runs: list[list[int]] = []              # indices into ranges, each run adjacent
+    for i, (a, b) in enumerate(ranges):
+        if runs and ranges[runs[-1][-1]][1] == a \
+                and b - ranges[runs[-1][0]][0] <= size:
+            runs[-1].append(i)
+        else:
+            runs.append([i])
+    parts = executor.gather(gctx, [(ranges[r[0]][0], ranges[r[-1]][1]) for r in runs])
+    out = []
+    for r, part in zip(runs, parts, strict=True):
+        first = ranges[r[0]][0]
+        out += [part.rows(ranges[i][0] - first, ranges[i][1] - first) for i in r]
+    return out
 
 
 class GatherAhead:
@@ -1603,7 +1634,7 @@ class GatherAhead:
     :func:`gather_operator_of` give them, wherever they were computed."""
 
     def __init__(self, handle):
-        self._handle = handle          # the executor's handle (InProcess.ahead)
+        self._handle = handle          # the executor's handle (its ahead(): an Ahead)
 
     def plan(self) -> GatherPlan | None:
         return self._handle.plan()

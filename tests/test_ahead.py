@@ -151,12 +151,19 @@ def test_a_plan_that_fails_raises_where_it_is_read():
         work.result()
 
 
-@pytest.mark.parametrize("how", ["stop", "close the executor"])
-def test_the_work_ahead_ends_after_the_range_it_is_in(monkeypatch, how):
+@pytest.mark.parametrize("how", ["stop", "close the executor", "close a cluster's executor"])
+def test_the_work_ahead_ends_after_the_range_it_is_in(monkeypatch, how, request, tmp_path):
     release, started = threading.Event(), threading.Event()
     monkeypatch.setattr(render, "gather_vertices",
                         _blocking_task(release, started, "daskrad-ahead"))
-    ex = InProcess(threads=2)
+    if how == "close a cluster's executor":
+        from daskrad.distributed.dask_executor import DaskExecutor
+        from daskrad.distributed.store import Store
+
+        ex = DaskExecutor(request.getfixturevalue("cluster_client"),
+                          Store(tmp_path / "a.zarr", SMALL).open())
+    else:
+        ex = InProcess(threads=2)
     try:
         work = ex.ahead("gather", lambda: 0, lambda p: p,
                         lambda p: [(i, i + 1) for i in range(50)])
@@ -177,12 +184,14 @@ def test_the_work_ahead_ends_after_the_range_it_is_in(monkeypatch, how):
 def test_a_cluster_client_computes_the_gather_ahead_with_the_same_bits(
         solved, cluster_client, tmp_path, monkeypatch, finish):
     # the client's thread computes the ranges ahead; those it has not finished when the
-    # render asks go to the workers as gather tasks: the same bits either way
+    # render asks go to the workers as gather tasks: the same bits either way. Asked at
+    # once: without idle priority the thread stops after its first range, so the workers
+    # have all the others, merged into fewer tasks (render.gather_merged)
     from daskrad.distributed.dask_executor import DaskExecutor
     from daskrad.distributed.store import Store
 
     scene, light, sol, plain = solved
-    monkeypatch.setattr(executor, "idle_priority", lambda: True)
+    monkeypatch.setattr(executor, "idle_priority", lambda: finish)
     ex = DaskExecutor(cluster_client, Store(tmp_path / "a.zarr", SMALL).open())
     sent = []
     gather = ex.gather
@@ -192,19 +201,43 @@ def test_a_cluster_client_computes_the_gather_ahead_with_the_same_bits(
         cam = render.camera(scene, SMALL)
         ahead = render.gather_ahead(scene, light, SMALL, cam, ex)
         assert ahead is not None
-        if finish:
-            assert ahead.join(timeout=60)
+        assert ahead.join(timeout=60)
         image = render.image(scene, light, sol, SMALL, ex, cam, ahead)
     finally:
         ex.close()
-    done, ranges = ahead.progress()
-    assert ranges > 1 and 1 <= done <= ranges
+    done, n = ahead.progress()
+    ranges = ahead.plan().ranges(batch=render.AHEAD_BATCH)
+    assert n == len(ranges) > 2
     if finish:
-        assert done == ranges and not sent          # the workers gathered nothing
-    else:      # the workers had the rest, and only the rest (and the range the thread
-        # was in when the render asked, which it may have finished since)
-        assert ranges - done <= sum(len(r) for r in sent) <= ranges - done + 1
+        assert done == n and not sent          # the workers gathered nothing
+    else:
+        assert done == 1 and len(sent) == 1
+        tasks = sent[0]
+        assert len(tasks) < n - 1              # merged
+        assert tasks[0][0] == ranges[1][0] and tasks[-1][1] == ranges[-1][1]
+        assert all(a[1] == b[0] for a, b in zip(tasks[:-1], tasks[1:], strict=True))
     np.testing.assert_array_equal(image.pixels, plain.pixels)
+
+
+def test_merged_gather_tasks_are_cut_back_into_their_ranges(solved):
+    # gather_merged runs adjacent ranges as one task and cuts its operator back: the same
+    # rows, bit for bit, as each range computed alone, across a gap between ranges too
+    scene, light, _, _ = solved
+    ex = InProcess(threads=2)
+    try:
+        plan = render.gather_ahead(scene, light, SMALL, render.camera(scene, SMALL), ex).plan()
+        ranges = plan.ranges(batch=7)
+        assert len(ranges) > 6
+        asked = ranges[:2] + ranges[3:]            # range 2 done elsewhere: a gap
+        got = render.gather_merged(plan.context, asked, ex)
+    finally:
+        ex.close()
+    assert len(got) == len(asked)
+    for (a, b), part in zip(asked, got, strict=True):
+        alone = render.gather_vertices(plan.context, a, b)
+        assert len(part.indptr) == b - a + 1
+        for x, y in zip(part, alone, strict=True):
+            np.testing.assert_array_equal(x, y)
 
 
 def test_without_idle_priority_the_thread_stops_after_its_first_range(monkeypatch):

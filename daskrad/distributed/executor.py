@@ -14,10 +14,10 @@ Both executors expose the same calls, so the pipeline is written once:
   :func:`daskrad.direct.vertex_light`, one per vertex range, in order;
 - ``gather(gather_ctx, ranges)`` → list of the junction gather's operator rows
   (:func:`daskrad.render.gather_vertices`), one per range of junction vertices, in order;
-- ``ahead(kind, plan, context_of, ranges_of)`` → :class:`Ahead`: ``kind`` tasks that read
-  geometry alone, started on the cores the solve leaves idle (the client's machine's, with
-  Dask)
-  (``"gather"``: the junction gather's operator rows, :func:`daskrad.render.gather_ahead`);
+- ``ahead(kind, plan, context_of, ranges_of)`` → :class:`Ahead` or None: ``kind`` tasks that
+  read geometry alone, started on the cores the solve leaves idle (with Dask, the client's
+  machine's; ``"gather"``: the junction gather's operator rows,
+  :func:`daskrad.render.gather_ahead`);
 - ``memory()`` → peak memory of the client and of every worker, and the row caches' use;
 - ``publish(key, value)``: progress for the dashboard (a no-op here);
 - ``close()``.
@@ -32,6 +32,7 @@ not depend on the number of threads.
 
 from __future__ import annotations
 
+import logging
 import os
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -178,7 +179,7 @@ class InProcess:
 
     def close(self) -> None:
         for work in self._started:
-            work.stop()
+            work.close()
         self._started = []
         with self._lock:
             pool, self._pool = self._pool, None
@@ -219,6 +220,12 @@ def idle_priority() -> bool:
     except OSError:
         return False
     return True
+
+
+#: Seconds :meth:`Ahead.close` waits for the plan to finish.
+CLOSE_SECONDS = 30.0
+
+_log = logging.getLogger(__name__)
 
 
 def ahead_task(kind: str):
@@ -287,7 +294,9 @@ class Ahead:
             try:
                 value = task(ctx, *ranges[i])
             except BaseException:  # noqa: BLE001 - result() runs the range again and
-                return             # meets the error in the caller's thread
+                # meets the error in the caller's thread (or not: one only this thread met)
+                _log.debug("work ahead stopped at range %d", i, exc_info=True)
+                return
             with self._lock:
                 self._done[i] = value
             if first:
@@ -304,7 +313,7 @@ class Ahead:
 
     def result(self) -> list:
         """Every range's result, in order: those the idle thread finished, the others run
-        now on the executor's threads."""
+        now through ``run`` (the executor's threads, or tasks on a cluster)."""
         p = self.plan()
         self.stop()
         with self._lock:
@@ -321,6 +330,15 @@ class Ahead:
         """Take no more ranges (one running finishes on its own)."""
         with self._lock:
             self._stopped = True
+
+    def close(self, timeout: float = CLOSE_SECONDS) -> None:
+        """Take no more ranges, and wait (up to ``timeout`` s) for the plan: it casts rays on
+        numba's threads, which must not overlap what the process does next (a next run's
+        grid; numba's workqueue layer takes one caller at a time). Not for the range the
+        thread may be in: that runs serial kernels, at an idle priority that a busy machine
+        may starve for long."""
+        self.stop()
+        self._planned.wait(timeout)
 
     def progress(self) -> tuple[int, int]:
         """``(ranges finished by the idle thread, ranges)`` (0 of 0 before the plan)."""
