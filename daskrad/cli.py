@@ -207,7 +207,8 @@ def build_parser(help_choices: bool = True) -> argparse.ArgumentParser:
     run.add_argument("--dashboard", metavar="HOST:PORT",
                      help=f"where a LocalCluster's dashboard listens {_default('dashboard')}")
     run.add_argument("--checkpoint-every", type=_positive_int,
-                     help=f"batches between checkpoints into OUT.zarr (and at least 5 s apart) "
+                     help=f"batches between checkpoints into OUT.zarr (at least 5 s apart, the "
+                          "first 5 s into the solve) "
                           f"{_default('checkpoint_every')}")
     run.add_argument("--resume", action="store_true",
                      help="continue from OUT.zarr's checkpoint; a smaller --tolerance or a "
