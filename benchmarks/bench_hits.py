@@ -18,6 +18,10 @@ change relative to the pixel). They differ to round-off but where two one-sided 
 back to back (the walk then sees whichever round-off favours, the located hit the face towards
 the ray).
 
+A second table times the camera's rays found by screen bins (:data:`daskrad.render.VIEW_BINS`,
+:mod:`daskrad.kernels.view`) against the walk of the polygons' grid: every tile's primary rays on
+one thread, and the image's tiles, both arms alternated, with whether they give the same bits.
+
 ``python -m benchmarks.bench_hits [--scene PATH [--config TOML]] [--size W H] [--shots N]
 [--repeat N]``; writes ``benchmarks/results/hits.json``.
 """
@@ -34,6 +38,8 @@ import numpy as np
 
 from daskrad import direct, render, solve
 from daskrad.distributed.executor import InProcess
+from daskrad.kernels.grid import closest_hit_located_batch
+from daskrad.kernels.view import view_hits_batch
 from daskrad.preprocess import preprocess
 from daskrad.scene import load_scene
 from daskrad.settings import Settings
@@ -48,9 +54,10 @@ def _arm(ctx: render.RenderContext, located: bool, ex) -> tuple[float, float, np
     :data:`daskrad.render.POLYGON_HITS` set to ``located`` (restored after), the junction
     gather by rays in both arms (:data:`daskrad.render.DISC_POLYGONS` −1: the disc's
     directions have no walk of the elements to compare with)."""
-    keep, few = render.POLYGON_HITS, render.DISC_POLYGONS
+    keep, few, bins = render.POLYGON_HITS, render.DISC_POLYGONS, render.VIEW_BINS
     render.POLYGON_HITS = located
     render.DISC_POLYGONS = -1        # both arms gather by rays (the walk has no disc)
+    render.VIEW_BINS = False         # both walk a grid (the view table has the bins)
     try:
         t = time.perf_counter()
         view = render.for_view(ctx, ex)
@@ -59,7 +66,54 @@ def _arm(ctx: render.RenderContext, located: bool, ex) -> tuple[float, float, np
         image = render.pixels(view, ex)
         return gather, time.perf_counter() - t, view.vertex_radiance, image
     finally:
-        render.POLYGON_HITS, render.DISC_POLYGONS = keep, few
+        render.POLYGON_HITS, render.DISC_POLYGONS, render.VIEW_BINS = keep, few, bins
+
+
+def view_table(ctx: render.RenderContext, repeat: int, ex) -> dict:
+    """The camera's rays through screen bins against the walk of the polygons' grid
+    (:data:`daskrad.render.VIEW_BINS`), alternated ``repeat`` times, medians: **rays**, every
+    tile's primary rays (``spp`` a pixel) on one thread, and whether the hits are the same
+    bits; **tiles**, the image's tiles on the executor's threads, and whether the images are
+    the same bits."""
+    view = render.for_view(ctx, ex)
+    cam = view.camera
+    batches = [render.primary_rays(cam, rows, cols, view.spp)
+               for rows, cols in render.tiles(cam.width, cam.height)]
+    polys, loc, grid = view.occluders, view.locator, view.grid
+
+    def walk():
+        return [closest_hit_located_batch(polys, loc, grid, o, d, np.zeros(len(o)),
+                                          np.full(len(o), np.inf)) for o, d in batches]
+
+    def bins():
+        return [view_hits_batch(polys, loc, grid, o[0], d) for o, d in batches]
+
+    keep = render.VIEW_BINS
+    seconds: dict = {"walk": [], "bins": [], "tiles walk": [], "tiles bins": []}
+    got: dict = {}
+    try:
+        for k in range(repeat + 1):              # the first pass loads the kernels
+            for arm in (("walk", "bins") if k % 2 == 0 else ("bins", "walk")):
+                t = time.perf_counter()
+                got[arm] = (walk if arm == "walk" else bins)()
+                if k:
+                    seconds[arm].append(time.perf_counter() - t)
+                render.VIEW_BINS = arm == "bins"
+                t = time.perf_counter()
+                got["tiles " + arm] = render.pixels(view, ex)
+                if k:
+                    seconds["tiles " + arm].append(time.perf_counter() - t)
+    finally:
+        render.VIEW_BINS = keep
+    same = all(np.array_equal(x, y) for a, b in zip(got["walk"], got["bins"], strict=True)
+               for x, y in zip(a, b, strict=True))
+    med = {k: float(np.median(v)) for k, v in seconds.items()}
+    return {"rays": int(sum(len(o) for o, _ in batches)), "rays_walk_s": med["walk"],
+            "rays_bins_s": med["bins"], "rays_speedup": med["walk"] / med["bins"],
+            "rays_same_bits": bool(same), "tiles_walk_s": med["tiles walk"],
+            "tiles_bins_s": med["tiles bins"],
+            "tiles_speedup": med["tiles walk"] / med["tiles bins"],
+            "tiles_same_bits": bool(np.array_equal(got["tiles walk"], got["tiles bins"]))}
 
 
 def _change(a: np.ndarray, b: np.ndarray, axis: int) -> dict:
@@ -101,7 +155,8 @@ def measure(path: Path, config: Path | None, size: tuple[int, int], shots: int |
             "tiles_speedup": float(med[False][1] / med[True][1]),
             "render_speedup": float(med[False].sum() / med[True].sum()),
             "vertex_radiance": _change(out[False][0], out[True][0], 1),
-            "image": _change(out[False][1], out[True][1], 2)}
+            "image": _change(out[False][1], out[True][1], 2),
+            "view": view_table(ctx, repeat, ex)}
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -132,6 +187,16 @@ def main(argv: list[str] | None = None) -> dict:
               f"{r['image']['largest_relative']:>9.1e}")
     print(f"(seconds: medians of {args.repeat} alternated repeats, {rows[0]['threads']} "
           f"threads, {args.size[0]} x {args.size[1]}; 'x' = walk / located)")
+    print(f"\nthe camera's rays by screen bins against the walk of the polygons' grid: every "
+          f"tile's primary rays on one thread, the tiles on {rows[0]['threads']} threads")
+    print(f"{'scene':<16}{'rays':>9}  {'rays: walk':>10}{'bins':>8}{'x':>6}  same  "
+          f"{'tiles: walk':>11}{'bins':>8}{'x':>6}  same")
+    for r in rows:
+        v = r["view"]
+        print(f"{r['scene']:<16}{v['rays']:>9,}  {v['rays_walk_s']:>10.3f}{v['rays_bins_s']:>8.3f}"
+              f"{v['rays_speedup']:>6.2f}  {str(v['rays_same_bits']):<5} "
+              f"{v['tiles_walk_s']:>11.3f}{v['tiles_bins_s']:>8.3f}{v['tiles_speedup']:>6.2f}"
+              f"  {v['tiles_same_bits']}")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "hits.json").write_text(json.dumps(rows, indent=2) + "\n")
     return {"hits": rows}
