@@ -137,12 +137,14 @@ def test_the_render_takes_the_same_bits_by_bins(monkeypatch):
 @pytest.mark.parametrize("bins", [None, 1, 5])
 def test_a_ray_within_the_edge_tolerance_outside_a_lone_triangle(bins):
     # the walk counts a point up to eps outside a triangle's edge lines as a hit: rays aimed
-    # just outside one edge (and beyond a corner) must find the triangle in their bin, which
-    # only the triangle grown by the tolerance holds
+    # just outside one edge (and beyond a corner) must find the triangle in their bin. With
+    # a coarser tolerance (a millionth of the scene) the offset is far beyond the widening
+    # for round-off: only the triangle grown by the tolerance holds them
     tri = np.array([[[-1.0, -1.0, 5.0], [1.0, -1.0, 5.0], [0.0, 1.0, 5.0]]])
-    other = np.array([[[50.0, 50.0, 9.0], [51.0, 50.0, 9.0], [50.0, 51.0, 9.0]]])  # the extent
-    tris = np.concatenate([tri, other])
-    polygons = build_grid(tris)
+    other = np.array([[[50.0, 50.0, 9.0], [51.0, 50.0, 9.0], [50.0, 51.0, 9.0]],
+                      [[-50.0, -50.0, 1.0], [-51.0, -50.0, 1.0], [-50.0, -51.0, 1.0]]])
+    tris = np.concatenate([tri, other])         # the others: the triangle inside the grid
+    polygons = build_grid(tris, rel_eps=1e-6)
     loc = locator(tris)
     eps = polygons.eps
     xs = np.linspace(-0.9, 0.9, 40)
@@ -154,3 +156,59 @@ def test_a_ray_within_the_edge_tolerance_outside_a_lone_triangle(bins):
     walked = _walked(polygons, polygons, loc, eye, d)
     assert (walked[1] == 0).sum() >= 20             # the walk hits most of them
     _same(_binned(polygons, polygons, loc, eye, d, bins), walked)
+
+
+@pytest.mark.parametrize("bins", [None, 1, 6])
+def test_geometry_within_the_near_depth_of_the_eye(rng, bins):
+    # a small triangle across the view's axis at a tenth of the near depth zc (it projects
+    # over much of the screen), a long one from just off the eye out to the far wall passing
+    # beside the axis, and a far wall that sets the scene's extent
+    zc = view.NEAR * np.sqrt(3.0)
+    small = [[-1e-6, -1e-6, 0.1 * zc], [1e-6, -1e-6, 0.1 * zc], [0.0, 1e-6, 0.1 * zc]]
+    long = [[2e-6, -1.0, 1e-7], [2e-6, 1.0, 1e-7], [0.05, 0.0, 1.0]]
+    wall = [[-1.0, -1.0, 1.0], [1.0, -1.0, 1.0], [0.0, 1.0, 1.0]]
+    far = [[1.0, 1.0, 0.9], [0.9, 1.0, 1.0], [1.0, 0.9, 1.0]]
+    tris = np.array([small, long, wall, far])
+    polygons = build_grid(tris)
+    loc = locator(tris)
+    eye = np.zeros(3)
+    d = _cone(rng, 3000, [0.0, 0.0, 1.0], 15.0)
+    walked = _walked(polygons, polygons, loc, eye, d)
+    assert (walked[1] == 0).sum() > 100 and (walked[1] == 1).sum() > 20
+    _same(_binned(polygons, polygons, loc, eye, d, bins), walked)
+
+
+def test_a_soup_far_from_the_origin_with_slivers(rng):
+    # coordinates of a million (a building in map units), and slivers among the triangles
+    centre = rng.random((400, 3)) * 2.0
+    tris = centre[:, None, :] + rng.normal(scale=0.1, size=(400, 3, 3))
+    tris[::10, 2] = tris[::10, 0] + 1e-13 * (tris[::10, 1] - tris[::10, 0])   # slivers
+    shift = np.array([1e6, -2e6, 5e5])
+    tris = tris + shift
+    polygons = build_grid(tris)
+    loc = locator(tris)
+    eye = shift + np.array([1.0, 1.0, -1.0])
+    d = _cone(rng, 3000, [0.1, 0.0, 1.0], 40.0)
+    got = _binned(polygons, polygons, loc, eye, d)
+    _same(got, _walked(polygons, polygons, loc, eye, d))
+    assert (got[1] >= 0).sum() > 300
+
+
+@pytest.mark.parametrize("case", ["one ray", "one direction", "not finite", "sideways"])
+def test_odd_batches(rng, case):
+    tris = rng.random((200, 3, 3)) * 2.0 - 1.0
+    polygons = build_grid(tris)
+    loc = locator(tris)
+    eye = np.array([0.0, 0.0, -2.0])
+    d = _cone(rng, 50, [0.0, 0.0, 1.0], 20.0)
+    if case == "one ray":
+        d = d[:1]
+    elif case == "one direction":
+        d[:] = d[0]
+    elif case == "not finite":
+        d[::7] = np.nan
+        d[1::7] = [np.inf, 0.0, 1.0]
+    else:       # perpendicular to the mean direction, or away from it
+        d[::3] = [1.0, 0.0, 0.0]
+        d[1::9] = [0.0, 0.0, -1.0]
+    _same(_binned(polygons, polygons, loc, eye, d), _walked(polygons, polygons, loc, eye, d))

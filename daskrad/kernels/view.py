@@ -16,14 +16,21 @@ projection is made conservative for that:
 
 - the walk counts a hit up to ``eps`` outside a triangle's edge lines: the triangle with every
   edge line moved out by ``eps`` is the triangle scaled about its incentre by ``1 + eps / ρ``
-  (``ρ`` its inradius), so those corners are projected, not the triangle's own;
-- a triangle that reaches the eye's plane (``(P − o) · f <= 0`` at a scaled corner) cannot be
-  projected: unless it lies wholly behind the plane (then no ray hits it) it is listed in every
-  bin (the floor under a camera inside a room; a few triangles);
-- each corner's projection is widened by a margin far above the round-off of ``X / Z``, and a
-  triangle with no inradius to speak of is listed everywhere.
+  (``ρ`` its inradius), so those corners (at twice the tolerance) are projected, not the
+  triangle's own (where ``eps`` is a small share of a triangle's depth, the widening below
+  holds it as well);
+- each corner's projection is widened far beyond the round-off of ``X / Z`` and of a
+  coordinate (:data:`WIDEN`, ``tol``), and a triangle with no inradius to speak of is listed
+  everywhere;
+- a triangle that reaches the eye's plane is clipped at a depth ``zc`` (:data:`NEAR`): the part
+  beyond is projected; a ray of the batch meets the part at depths ``0 < Z < zc`` only within
+  ``reach · zc`` of the view's axis (``reach`` the rays' largest screen coordinate), so a
+  triangle whose part there comes that close is listed in every bin (geometry touching the
+  eye), and one wholly behind the eye's plane in none;
+- a bin's triangles are tested nearest first (by the least depth of their projected part), and
+  a ray stops where the next one lies deeper than its hit, by :data:`DEPTH_SLACK`.
 
-A ray with ``d · f <= 0`` (never a primary ray of the camera) or outside the bins' range walks
+A ray with ``d · f <= 0`` (never a primary ray of the camera) walks
 the polygons' grid as before.
 """
 
@@ -33,12 +40,17 @@ import numpy as np
 
 from daskrad.kernels._jit import jit
 from daskrad.kernels.grid import NO_FAN, _intersect, _walk, locate_hit
+from daskrad.kernels.tolerances import COORD_ROUND
 
 #: Relative widening of each projected corner (far above the round-off of ``X / Z``).
 WIDEN = 1e-7
 #: Depths below this share of the scene's extent count as near the eye's plane
 #: (:func:`triangle_boxes`).
 NEAR = 1e-4
+#: Relative slack of the nearest-first stop: a triangle is passed over only where its least
+#: depth exceeds the hit's ``t · d · f`` by this much (far above the round-off of ``t``, where
+#: the walk's own answer does not depend on round-off either).
+DEPTH_SLACK = 1e-6
 #: Rays per bin aimed at (:func:`bin_counts`).
 RAYS_PER_BIN = 48
 
@@ -67,7 +79,7 @@ def _clip(X, Y, Z, m, zc, above, oX, oY, oZ):
 
 
 @jit
-def triangle_boxes(tris, eps, o, r, u, f, zc, reach):
+def triangle_boxes(tris, eps, o, r, u, f, zc, reach, tol):
     """``(lo (T, 2), hi (T, 2), kind (T,) int8, near (T,))``: each triangle's screen bounding
     box, the triangle grown by the walk's edge tolerance ``eps`` (scaled about its incentre)
     and widened for round-off; ``kind`` 0 boxed, 1 everywhere, -1 nowhere; ``near`` the least
@@ -77,7 +89,8 @@ def triangle_boxes(tris, eps, o, r, u, f, zc, reach):
     ``reach`` of the centre in ``x`` and ``y``) meets a point at depth ``0 < Z < zc`` only
     within ``reach · zc`` of the eye's axis: a triangle whose part at those depths comes that
     close is listed everywhere (geometry touching the eye; and a degenerate triangle), one
-    wholly behind the eye's plane nowhere."""
+    wholly behind the eye's plane nowhere. ``tol``: the round-off of a coordinate (a corner
+    of the grown triangle, in the view's frame), added to every margin."""
     n = tris.shape[0]
     lo = np.empty((n, 2))
     hi = np.empty((n, 2))
@@ -86,10 +99,14 @@ def triangle_boxes(tris, eps, o, r, u, f, zc, reach):
     X = np.empty(3)
     Y = np.empty(3)
     Z = np.empty(3)
-    cX = np.empty(4)
-    cY = np.empty(4)
-    cZ = np.empty(4)
-    box = reach * zc * (1.0 + 1e-6)
+    cX = np.empty(5)
+    cY = np.empty(5)
+    cZ = np.empty(5)
+    dX = np.empty(5)
+    dY = np.empty(5)
+    dZ = np.empty(5)
+    # |X| <= reach · Z at a hit with Z <= zc, each coordinate off by tol
+    box = reach * (zc + tol) * (1.0 + 1e-6) + tol
     for t in range(n):
         ax, ay, az = tris[t, 0, 0], tris[t, 0, 1], tris[t, 0, 2]
         bx, by, bz = tris[t, 1, 0], tris[t, 1, 1], tris[t, 1, 2]
@@ -119,11 +136,13 @@ def triangle_boxes(tris, eps, o, r, u, f, zc, reach):
             Y[k] = wx * u[0] + wy * u[1] + wz * u[2]
             Z[k] = wx * f[0] + wy * f[1] + wz * f[2]
             zmax = max(zmax, Z[k])
-        if zmax < 0.0:
+        if zmax < -tol:
             kind[t] = -1                                     # wholly behind the eye
             continue
-        # the part at 0 <= Z <= zc: does it come within the batch's rays' reach of the axis?
-        m = _clip(X, Y, Z, 3, zc, False, cX, cY, cZ)
+        # the part at 0 <= Z <= zc (and the round-off about it): does it come within the
+        # batch's rays' reach of the axis?
+        m = _clip(X, Y, Z, 3, zc + tol, False, dX, dY, dZ)
+        m = _clip(dX, dY, dZ, m, -tol, True, cX, cY, cZ)
         if m:
             x0 = y0 = np.inf
             x1 = y1 = -np.inf
@@ -144,13 +163,14 @@ def triangle_boxes(tris, eps, o, r, u, f, zc, reach):
         for a in range(m):
             x = cX[a] / cZ[a]
             y = cY[a] / cZ[a]
-            # the relative error of X / Z: a few ulps of |P − o| / Z
-            g = WIDEN * (1.0 + abs(x) + abs(y)) * (abs(cX[a]) + abs(cY[a]) + cZ[a]) / cZ[a]
+            # the relative error of X / Z, a few ulps of |P − o| / Z, and the coordinates'
+            g = (WIDEN * (abs(cX[a]) + abs(cY[a]) + cZ[a]) + 4.0 * tol) \
+                * (1.0 + abs(x) + abs(y)) / cZ[a]
             x0 = min(x0, x - g)
             x1 = max(x1, x + g)
             y0 = min(y0, y - g)
             y1 = max(y1, y + g)
-            zlo = min(zlo, cZ[a])
+            zlo = min(zlo, cZ[a] - tol)
         lo[t, 0] = x0
         lo[t, 1] = y0
         hi[t, 0] = x1
@@ -259,11 +279,17 @@ def view_hits(polygons, grid, loc, o, directions, r, u, f, nbx, nby):
         y1 = max(y1, sy[k])
     tris, eps = polygons.triangles, polygons.eps
     if x0 <= x1:
-        # depths below zc are near the eye's plane (a ten-thousandth of the grid's extent)
+        # depths below zc are near the eye's plane (a ten-thousandth of the grid's extent);
+        # tol: a coordinate's round-off, relative to the largest (grid.COORD_ROUND)
         ext = polygons.cell * polygons.dims
         zc = NEAR * np.sqrt(ext[0] ** 2 + ext[1] ** 2 + ext[2] ** 2)
-        reach = max(abs(x0), abs(x1), abs(y0), abs(y1))
-        lo, hi, kind, near_z = triangle_boxes(tris, eps, o, r, u, f, zc, reach)
+        big = 0.0
+        for a in range(3):
+            big = max(big, abs(polygons.origin[a]), abs(polygons.origin[a] + ext[a]))
+            big = max(big, abs(o[a]))
+        tol = 64.0 * COORD_ROUND * big
+        screen = max(abs(x0), abs(x1), abs(y0), abs(y1))
+        lo, hi, kind, near_z = triangle_boxes(tris, eps, o, r, u, f, zc, screen, tol)
         inv_w = nbx / (x1 - x0) if x1 > x0 else 0.0
         inv_h = nby / (y1 - y0) if y1 > y0 else 0.0
         order = np.argsort(near_z, kind="mergesort")
@@ -293,16 +319,16 @@ def view_hits(polygons, grid, loc, o, directions, r, u, f, nbx, nby):
             # nearest first: a triangle whose grown corners all lie deeper than the hit so
             # far (its depth along the ray, ``t · d · f``, widened for round-off) cannot be hit
             # before it, nor can any after it
-            reach = tp * sz[k] * (1.0 + 1e-9)
+            deepest = tp * sz[k] * (1.0 + DEPTH_SLACK)
             for m in range(start[b], start[b + 1]):
-                if near_z[items[m]] > reach:
+                if near_z[items[m]] > deepest:
                     break
                 hit, t, _, _ = _intersect(tris, items[m], o[0], o[1], o[2], dx, dy, dz, 0.0,
                                           tp, eps)
                 if hit:
                     tp = t
                     ptri = items[m]
-                    reach = tp * sz[k] * (1.0 + 1e-9)
+                    deepest = tp * sz[k] * (1.0 + DEPTH_SLACK)
         if ptri < 0:
             continue
         t, tri, uu, vv = locate_hit(grid, loc, o, directions[k], tp, 0.0, np.inf)
