@@ -181,49 +181,42 @@ def triangle_boxes(tris, eps, o, r, u, f, zc, reach, tol):
 
 @jit
 def view_bins(lo, hi, kind, order, x0, y0, x1, y1, inv_w, inv_h, nbx, nby):
-    """``(start (nbx·nby + 1,), items, every)``: the boxed triangles listed in each screen bin
-    their box reaches (bin ``(i, j)`` covers ``x0 + [i, i + 1) / inv_w`` by ``y0 + [j, j + 1) /
-    inv_h``, the edge bins reaching on to infinity), in the order ``order`` (nearest first),
-    and the triangles listed everywhere (``kind`` 1). A box that misses the rays' range
-    ``[x0, x1] × [y0, y1]`` is in no bin: no ray of the batch can hit its triangle."""
+    """``(start (nbx·nby + 1,), items)``: the triangles listed in each screen bin, in the order
+    ``order`` (nearest first): a boxed one (``kind`` 0) in every bin its box reaches (bin
+    ``(i, j)`` covers ``x0 + [i, i + 1) / inv_w`` by ``y0 + [j, j + 1) / inv_h``, the edge
+    bins reaching on to infinity), one of ``kind`` 1 in every bin. A box that misses the rays'
+    range ``[x0, x1] × [y0, y1]`` is in no bin: no ray of the batch can hit its triangle."""
     n = kind.shape[0]
-    kind = kind.copy()
-    for t in range(n):
-        if kind[t] == 0 and (hi[t, 0] < x0 or lo[t, 0] > x1 or hi[t, 1] < y0
-                             or lo[t, 1] > y1):
-            kind[t] = -1
     nb = nbx * nby
     count = np.zeros(nb + 1, np.int64)
-    n_every = 0
-    for t in range(n):
-        if kind[t] == 1:
-            n_every += 1
-        elif kind[t] == 0:
-            i0, i1, j0, j1 = _bin_range(lo[t, 0], lo[t, 1], hi[t, 0], hi[t, 1], x0, y0, inv_w,
-                                        inv_h, nbx, nby)
-            for j in range(j0, j1 + 1):
-                for i in range(i0, i1 + 1):
-                    count[j * nbx + i + 1] += 1
-    for b in range(nb):
-        count[b + 1] += count[b]
-    items = np.empty(count[nb], np.int32)
-    fill = count[:nb].copy()
-    every = np.empty(n_every, np.int32)
-    e = 0
-    for q in range(n):
-        t = order[q]
-        if kind[t] == 1:
-            every[e] = t
-            e += 1
-        elif kind[t] == 0:
-            i0, i1, j0, j1 = _bin_range(lo[t, 0], lo[t, 1], hi[t, 0], hi[t, 1], x0, y0, inv_w,
-                                        inv_h, nbx, nby)
+    for fill_in in range(2):        # count, then fill
+        if fill_in:
+            for b in range(nb):
+                count[b + 1] += count[b]
+            items = np.empty(count[nb], np.int32)
+            at = count[:nb].copy()
+        else:
+            items = np.empty(0, np.int32)
+            at = count[:0]
+        for q in range(n):
+            t = order[q]
+            if kind[t] == 1:
+                i0, i1, j0, j1 = 0, nbx - 1, 0, nby - 1
+            elif kind[t] == 0 and not (hi[t, 0] < x0 or lo[t, 0] > x1 or hi[t, 1] < y0
+                                       or lo[t, 1] > y1):
+                i0, i1, j0, j1 = _bin_range(lo[t, 0], lo[t, 1], hi[t, 0], hi[t, 1], x0, y0,
+                                            inv_w, inv_h, nbx, nby)
+            else:
+                continue
             for j in range(j0, j1 + 1):
                 for i in range(i0, i1 + 1):
                     b = j * nbx + i
-                    items[fill[b]] = t
-                    fill[b] += 1
-    return count, items, every
+                    if fill_in:
+                        items[at[b]] = t
+                        at[b] += 1
+                    else:
+                        count[b + 1] += 1
+    return count, items
 
 
 @jit
@@ -293,12 +286,11 @@ def view_hits(polygons, grid, loc, o, directions, r, u, f, nbx, nby):
         inv_w = nbx / (x1 - x0) if x1 > x0 else 0.0
         inv_h = nby / (y1 - y0) if y1 > y0 else 0.0
         order = np.argsort(near_z, kind="mergesort")
-        start, items, every = view_bins(lo, hi, kind, order, x0, y0, x1, y1, inv_w, inv_h,
-                                        nbx, nby)
+        start, items = view_bins(lo, hi, kind, order, x0, y0, x1, y1, inv_w, inv_h, nbx,
+                                 nby)
     else:
         start = np.zeros(1, np.int64)
         items = np.zeros(0, np.int32)
-        every = np.zeros(0, np.int32)
         near_z = np.zeros(0)
         inv_w = inv_h = 0.0
     for k in range(n):
@@ -310,24 +302,19 @@ def view_hits(polygons, grid, loc, o, directions, r, u, f, nbx, nby):
             b = _bin(sy[k], y0, inv_h, nby) * nbx + _bin(sx[k], x0, inv_w, nbx)
             tp = np.inf
             ptri = -1
-            for m in range(every.shape[0]):
-                hit, t, _, _ = _intersect(tris, every[m], o[0], o[1], o[2], dx, dy, dz, 0.0,
-                                          tp, eps)
-                if hit:
-                    tp = t
-                    ptri = every[m]
-            # nearest first: a triangle whose grown corners all lie deeper than the hit so
-            # far (its depth along the ray, ``t · d · f``, widened for round-off) cannot be hit
-            # before it, nor can any after it
-            deepest = tp * sz[k] * (1.0 + DEPTH_SLACK)
+            # nearest first: a triangle whose least depth lies deeper than the hit so far (its
+            # depth along the ray, t · d · f, widened by DEPTH_SLACK) cannot be hit before it,
+            # nor can any after it; those listed everywhere come first (near_z -inf)
+            deepest = np.inf
             for m in range(start[b], start[b + 1]):
-                if near_z[items[m]] > deepest:
+                tri = items[m]
+                if near_z[tri] > deepest:
                     break
-                hit, t, _, _ = _intersect(tris, items[m], o[0], o[1], o[2], dx, dy, dz, 0.0,
-                                          tp, eps)
+                hit, t, _, _ = _intersect(tris, tri, o[0], o[1], o[2], dx, dy, dz, 0.0, tp,
+                                          eps)
                 if hit:
                     tp = t
-                    ptri = items[m]
+                    ptri = tri
                     deepest = tp * sz[k] * (1.0 + DEPTH_SLACK)
         if ptri < 0:
             continue
