@@ -384,6 +384,11 @@ def _intersect(tris, k, ox, oy, oz, dx, dy, dz, tmin, tmax, eps):
     return True, t, u, v
 
 
+#: The walk's ray–triangle test (:func:`_intersect`), for kernels that test a grid's triangles
+#: in an order of their own (:mod:`daskrad.kernels.view`): the same answer, bit for bit.
+intersect = _intersect
+
+
 @jit
 def _cross_norm2(ax, ay, az, bx, by, bz):
     """``|a × b|²``."""

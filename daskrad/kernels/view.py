@@ -7,7 +7,7 @@ the view's forward axis) sits at the screen point ``(x, y) = (d · r, d · u) / 
 a triangle whose projection holds its screen point. So the polygon triangles are projected once
 per batch of rays into a grid of screen bins (:func:`view_bins`: each triangle listed in every
 bin its projection's bounding box reaches), and each ray tests only the triangles of its bin
-(:func:`view_hits`), with the grid walk's own Möller–Trumbore (``grid._intersect``) in the same
+(:func:`view_hits`), with the grid walk's own Möller–Trumbore (``grid.intersect``) in the same
 order-free way: the closest ``t`` is the least ``t`` over the triangles the ray hits, which is
 what the walk of the polygons' grid returns (:func:`daskrad.kernels.grid.closest_hit_located`),
 then located among the elements by the same :func:`daskrad.kernels.grid.locate_hit`. The same
@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from daskrad.kernels._jit import jit
-from daskrad.kernels.grid import NO_FAN, _intersect, _walk, locate_hit
+from daskrad.kernels.grid import NO_FAN, closest_hit_located, intersect, locate_hit
 from daskrad.kernels.tolerances import COORD_ROUND
 
 #: Relative widening of each projected corner (far above the round-off of ``X / Z``).
@@ -294,11 +294,11 @@ def view_hits(polygons, grid, loc, o, directions, r, u, f, nbx, nby):
         near_z = np.zeros(0)
         inv_w = inv_h = 0.0
     for k in range(n):
-        dx, dy, dz = directions[k, 0], directions[k, 1], directions[k, 2]
         if not ok[k]:      # not in front of the eye: the walk, as before
-            tp, ptri, _, _ = _walk(polygons, o[0], o[1], o[2], dx, dy, dz, 0.0, np.inf,
-                                   False, NO_FAN)
+            t, tri, uu, vv = closest_hit_located(polygons, NO_FAN, grid, loc, o,
+                                                 directions[k], 0.0, np.inf)
         else:
+            dx, dy, dz = directions[k, 0], directions[k, 1], directions[k, 2]
             b = _bin(sy[k], y0, inv_h, nby) * nbx + _bin(sx[k], x0, inv_w, nbx)
             tp = np.inf
             ptri = -1
@@ -310,15 +310,15 @@ def view_hits(polygons, grid, loc, o, directions, r, u, f, nbx, nby):
                 tri = items[m]
                 if near_z[tri] > deepest:
                     break
-                hit, t, _, _ = _intersect(tris, tri, o[0], o[1], o[2], dx, dy, dz, 0.0, tp,
-                                          eps)
+                hit, t, _, _ = intersect(tris, tri, o[0], o[1], o[2], dx, dy, dz, 0.0, tp,
+                                         eps)
                 if hit:
                     tp = t
                     ptri = tri
                     deepest = tp * sz[k] * (1.0 + DEPTH_SLACK)
-        if ptri < 0:
-            continue
-        t, tri, uu, vv = locate_hit(grid, loc, o, directions[k], tp, 0.0, np.inf)
+            if ptri < 0:
+                continue
+            t, tri, uu, vv = locate_hit(grid, loc, o, directions[k], tp, 0.0, np.inf)
         t_out[k] = t
         tri_out[k] = tri
         u_out[k] = uu
