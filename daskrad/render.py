@@ -379,9 +379,10 @@ POLYGON_HITS = True
 #: Rays that leave one point (the camera's primary rays) find their polygon by screen bins
 #: instead of walking the polygons' grid (:func:`daskrad.kernels.view.view_hits_batch`: the
 #: polygons projected into bins, each ray testing its bin's, nearest first): the same bits.
-#: Measured (``bench_hits``' view table; a tile's primary rays at 4 samples a pixel, one
-#: thread, whole images): the Cornell box 0.154 → 0.062 s, RenderPark's office 0.519 →
-#: 0.379 s, its classroom 0.452 → 0.174 s. ``False`` is the benchmark's reference arm.
+#: Measured (``bench_hits``' view table: every tile's primary rays at 4 samples a pixel, one
+#: thread, 256 × 256): the Cornell box 0.130 → 0.053 s, the lit room 0.121 → 0.039 s,
+#: RenderPark's classroom 0.247 → 0.098 s; its office by script (400 × 300) 0.519 → 0.379 s.
+#: ``False`` is the benchmark's reference arm.
 VIEW_BINS = True
 #: ... for a batch of at least ``1 / VIEW_RAYS`` as many rays as polygon triangles: binning
 #: costs ~65 ns a triangle (RenderPark's office, 53,460 of them), and a ray found by bins

@@ -348,10 +348,9 @@ class DaskExecutor:
         shares them with thread workers that wait on it between batches. ``result()`` sends
         what it has not done to the workers (:func:`daskrad.render.gather_merged`: tasks of
         :func:`daskrad.render.gather_batch` vertices, as the render sends). Not as Dask
-        tasks ahead: sent at a
-        priority below the rows', they took from the solve what they spared the render (the
-        Cornell box at 73,063 elements, 2 thread workers, medians of 2: solve 3.60 → 4.92 s,
-        render 2.12 → 0.87 s, the run 6.83 → 6.93 s)."""
+        tasks ahead: sent at a priority below the rows', they took from the solve what they
+        spared the render (the Cornell box at 73,063 elements, 2 thread workers, medians of
+        2: solve 3.60 → 4.92 s, render 2.12 → 0.87 s, the run 6.83 → 6.93 s)."""
         runs = {"gather": lambda ctx, ranges: render.gather_merged(ctx, ranges, self)}
         work = Ahead(plan, context_of, ranges_of, ahead_task(kind), runs[kind])
         self._started.append(work)
