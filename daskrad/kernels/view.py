@@ -30,8 +30,8 @@ projection is made conservative for that:
 - a bin's triangles are tested nearest first (by the least depth of their projected part), and
   a ray stops where the next one lies deeper than its hit, by :data:`DEPTH_SLACK`.
 
-A ray with ``d · f <= 0`` (never a primary ray of the camera) walks
-the polygons' grid as before.
+A ray with ``d · f <= 0`` (never a primary ray of the camera), or whose direction or screen
+point is not finite, walks the polygons' grid (:func:`daskrad.kernels.grid.closest_hit_located`).
 """
 
 from __future__ import annotations
@@ -80,9 +80,9 @@ def _clip(X, Y, Z, m, zc, above, oX, oY, oZ):
 
 @jit
 def triangle_boxes(tris, eps, o, r, u, f, zc, reach, tol):
-    """``(lo (T, 2), hi (T, 2), kind (T,) int8, near (T,))``: each triangle's screen bounding
+    """``(lo (T, 2), hi (T, 2), kind (T,) int8, near_z (T,))``: each triangle's screen bounding
     box, the triangle grown by the walk's edge tolerance ``eps`` (scaled about its incentre)
-    and widened for round-off; ``kind`` 0 boxed, 1 everywhere, -1 nowhere; ``near`` the least
+    and widened for round-off; ``kind`` 0 boxed, 1 everywhere, -1 nowhere; ``near_z`` the least
     depth ``Z = (P − o) · f`` of the grown triangle's boxed part (-inf for the others).
 
     The part at depths ``Z >= zc`` is projected. A ray of the batch (screen points within
@@ -185,7 +185,10 @@ def view_bins(lo, hi, kind, order, x0, y0, x1, y1, inv_w, inv_h, nbx, nby):
     ``order`` (nearest first): a boxed one (``kind`` 0) in every bin its box reaches (bin
     ``(i, j)`` covers ``x0 + [i, i + 1) / inv_w`` by ``y0 + [j, j + 1) / inv_h``, the edge
     bins reaching on to infinity), one of ``kind`` 1 in every bin. A box that misses the rays'
-    range ``[x0, x1] × [y0, y1]`` is in no bin: no ray of the batch can hit its triangle."""
+    range ``[x0, x1] × [y0, y1]`` is in no bin: no ray of the batch can hit its triangle.
+    :func:`view_hits` passes the order of :func:`triangle_boxes`' ``near_z``, -inf for
+    ``kind`` 1: those come first in every bin, where its nearest-first stop never passes one
+    over."""
     n = kind.shape[0]
     nb = nbx * nby
     count = np.zeros(nb + 1, np.int64)
@@ -294,7 +297,7 @@ def view_hits(polygons, grid, loc, o, directions, r, u, f, nbx, nby):
         near_z = np.zeros(0)
         inv_w = inv_h = 0.0
     for k in range(n):
-        if not ok[k]:      # not in front of the eye: the walk, as before
+        if not ok[k]:      # not in front of the eye (or not finite): the polygons' walk
             t, tri, uu, vv = closest_hit_located(polygons, NO_FAN, grid, loc, o,
                                                  directions[k], 0.0, np.inf)
         else:
