@@ -141,17 +141,17 @@ class InProcess:
             self.prefetched += 1
 
     def tiles(self, ctx: render.RenderContext, tiles: list) -> list[tuple[np.ndarray, dict]]:
-        return self.map(lambda t: render.render_tile_stats(ctx, t[0], t[1]), tiles)
+        return self.run_ranges(render.render_tile_stats)(ctx, tiles)
 
     def direct(self, ctx, ranges: list[tuple[int, int]]) -> list[tuple]:
         """Direct light at the vertex ranges (:func:`daskrad.direct.vertex_light`)."""
-        return self.map(lambda r: direct.vertex_light(ctx, r[0], r[1]), ranges)
+        return self.run_ranges(direct.vertex_light)(ctx, ranges)
 
     def gather(self, ctx: render.GatherContext, ranges: list[tuple[int, int]]
                ) -> list[render.GatherOperator]:
         """The junction gather's operator rows over ranges of its vertices
         (:func:`daskrad.render.gather_vertices`)."""
-        return self.map(lambda r: render.gather_vertices(ctx, r[0], r[1]), ranges)
+        return self.run_ranges(render.gather_vertices)(ctx, ranges)
 
     def ahead(self, kind: str, plan, context_of, ranges_of) -> Ahead | None:
         """Start the ``kind`` tasks (:func:`ahead_task`) ``task(context_of(p), a, b)`` over
@@ -166,7 +166,8 @@ class InProcess:
 
     def run_ranges(self, task):
         """``run(ctx, ranges)``: ``[task(ctx, a, b) for a, b in ranges]`` on this executor's
-        threads (what :class:`Ahead` runs the ranges it has not finished with)."""
+        threads, in order: how :meth:`tiles`, :meth:`direct` and :meth:`gather` run, and what
+        :class:`Ahead` runs the ranges it has not finished with."""
         return lambda ctx, ranges: self.map(lambda r: task(ctx, *r), ranges)
 
     def memory(self) -> dict:
