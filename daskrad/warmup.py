@@ -152,8 +152,10 @@ def kernel_stamps() -> dict[str, list[int]]:
 def environment() -> dict:
     import numba
 
+    from daskrad.kernels import LEAF_REFCOUNTS
+
     return {"numba": numba.__version__, "python": sys.version.split()[0],
-            "stamps": kernel_stamps()}
+            "stamps": kernel_stamps(), "leaf_refcounts": LEAF_REFCOUNTS}
 
 
 def _read_marker(directory: Path) -> dict | None:
@@ -279,6 +281,35 @@ def compile_all() -> None:
                 polygons=lit.occluders.grid, locator=loc, method=method), 0, len(points))
 
 
+def leaf_violations(modules=None) -> list[str]:
+    """Where the kernels of ``modules`` (default: every module of :mod:`daskrad.kernels`) break
+    the leaves' contract (:mod:`daskrad.kernels._jit`): a leaf that calls a counted kernel,
+    and a leaf compiled in this process with a result that holds an array. Empty when they
+    keep it."""
+    import importlib
+    import pkgutil
+
+    import daskrad.kernels
+    from daskrad.kernels import array_returns, is_leaf
+
+    if modules is None:
+        modules = [importlib.import_module(f"daskrad.kernels.{info.name}")
+                   for info in pkgutil.iter_modules(daskrad.kernels.__path__)]
+    out = []
+    for module in modules:
+        for name, fn in vars(module).items():
+            if not (is_leaf(fn) and fn.__module__ == module.__name__):
+                continue
+            where = f"{module.__name__.rsplit('.', 1)[-1]}.{name}"
+            code = fn.py_func.__code__
+            for called in code.co_names:
+                target = fn.py_func.__globals__.get(called)
+                if hasattr(target, "py_func") and not is_leaf(target):
+                    out.append(f"{where} calls the counted kernel {called}")
+            out += [f"{where} returns an array: {sig}" for sig in array_returns(fn)]
+    return out
+
+
 def warmup(verbose: bool = True) -> float:
     """Compile every kernel into numba's cache and write the marker; returns the seconds.
 
@@ -293,6 +324,9 @@ def warmup(verbose: bool = True) -> float:
     if verbose:
         print("daskrad: compiling kernels...", file=sys.stderr, flush=True)
     compile_all()
+    broken = leaf_violations()
+    if broken:        # a leaf returning an array corrupts the heap: never mark such a cache
+        raise RuntimeError("kernels break the leaves' contract: " + "; ".join(broken))
     seconds = time.perf_counter() - t
     index = sorted(n for n in os.listdir(directory) if n.endswith(".nbi"))
     payload = {"environment": environment(), "index": index, "seconds": seconds}

@@ -4,3 +4,7 @@ Nothing here imports the rest of the project (an import-linter contract enforces
 kernel is a plain function over arrays, tested alone, and called by thin in-process and Dask
 wrappers elsewhere so both paths share one implementation.
 """
+
+from daskrad.kernels._jit import LEAF_REFCOUNTS, array_returns, is_leaf, jit, jit_leaf
+
+__all__ = ["LEAF_REFCOUNTS", "array_returns", "is_leaf", "jit", "jit_leaf"]

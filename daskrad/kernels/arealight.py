@@ -72,7 +72,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_VISIBLE
 from daskrad.kernels.faces import UNION_RAYS, face_hides
 from daskrad.kernels.geometry import lex_less, orthonormal_basis
@@ -107,7 +107,7 @@ SLABS = 8
 HINT = 1
 
 
-@jit
+@jit_leaf
 def _pyramid(ex, ey, ez, corners, count, en, off, planes):
     """The face planes of the pyramid from the eye ``e`` to the light ``corners[:count]``.
 
@@ -156,7 +156,7 @@ def _pyramid(ex, ey, ez, corners, count, en, off, planes):
     planes[count, 4] = off
 
 
-@jit
+@jit_leaf
 def clip_polygon(poly, n_p, planes, count):
     """Clip the convex polygon ``poly[0:3, :n_p]`` (rows x, y, z; ``poly (6, 8)``, rows 3–5
     scratch) to the half-spaces ``k · x − kd >= 0`` of ``planes[:count]`` (rows ``(kx, ky,
@@ -203,7 +203,7 @@ def clip_polygon(poly, n_p, planes, count):
     return n_p
 
 
-@jit
+@jit_leaf
 def clip_planes(ex, ey, ez, corners, count, delta, out):
     """``out[:count]``: the planes ``(kx, ky, kz, kd)`` (``k · x − kd >= 0`` inside) through
     the eye ``e`` and each edge ``a → a+1`` of the light, turned about the edge's direction by
@@ -277,7 +277,7 @@ def clip_planes(ex, ey, ez, corners, count, delta, out):
         out[a, 3] = kx * ex + ky * ey + kz * ez
 
 
-@jit
+@jit_leaf
 def _cell_range(lo, hi, origin, cell, n):
     """First and last cell along one axis that ``[lo, hi]`` touches (clamped to the grid)."""
     a = int(np.floor(min(max((lo - origin) / cell, -1.0), n + 1.0)))
@@ -285,7 +285,7 @@ def _cell_range(lo, hi, origin, cell, n):
     return max(0, min(n - 1, a)), max(0, min(n - 1, b))
 
 
-@jit
+@jit_leaf
 def _box_cells(grid, ex, ey, ez, corners, count, off):
     """Cell ranges ``(i0, i1, j0, j1, k0, k1)`` of the pyramid's bounding box, grown by
     ``off`` and clamped to the grid."""
@@ -309,7 +309,7 @@ def _box_cells(grid, ex, ey, ez, corners, count, off):
     return i0, i1, j0, j1, k0, k1
 
 
-@jit
+@jit_leaf
 def _narrow(k, rest, origin, cell, lo, hi, a, b):
     """``[a, b]`` narrowed to the cells ``i`` of an axis (``lo..hi`` the box's) whose centre
     ``c = origin + (i + 1/2) cell`` may satisfy ``k · c + rest >= 0``: a plane bounds them from
@@ -323,7 +323,7 @@ def _narrow(k, rest, origin, cell, lo, hi, a, b):
     return a, min(b, int(np.ceil(bound)) + 1)
 
 
-@jit
+@jit_leaf
 def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid, cand,
                 n_c, i0, i1, j0, j1, k0, k1, cpl, sc, prune=True):
     """Triangles that may hide part of the light from the eye, appended to ``cand`` after its
@@ -477,7 +477,7 @@ def _centroid_ray(grid, ex, ey, ez, corners, count, off):
     return 0.0 if any_hit_one(grid, o, d, off / dl, 1.0 - off / dl) else 1.0
 
 
-@jit
+@jit_leaf
 def _light_window(ex, ey, ez, n, corners, count, en, hz, r, cos_thr, tab, lx, ly, lz, ev,
                   enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item, zbuf, mask, xc, yc, off):
     """Steps 2–3 for the light: project it, take its window, fill it into the z-buffer.
@@ -553,7 +553,7 @@ def _light_window(ex, ey, ez, n, corners, count, en, hz, r, cos_thr, tab, lx, ly
     return 0, x0, inv_px, y0, inv_py, n_light
 
 
-@jit
+@jit_leaf
 def _occlude(grid, ex, ey, ez, n, cand, s0, s1, hz, r, cos_thr, tab, lx, ly, lz, ev, enrm,
              eoff, scr, qclip, xs, ys, xcross, cnt, item, zbuf, mask, xc, yc, x0, inv_px, y0,
              inv_py, first, stop, hid, clip, count, poly):
@@ -650,7 +650,7 @@ def _occlude(grid, ex, ey, ez, n, cand, s0, s1, hz, r, cos_thr, tab, lx, ly, lz,
     return first
 
 
-@jit
+@jit_leaf
 def _candidate_planes(planes, count, off, ex, ey, ez, n, hz, cpl):
     """``cpl[:count + 2]``: the half-spaces a candidate must reach into
     (:func:`_candidates`), as :func:`clip_polygon` takes them (``k · x − kd >= 0``): the

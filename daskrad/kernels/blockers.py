@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.geometry import orthonormal_basis
 from daskrad.kernels.grid import closest_hit_one
 
@@ -28,7 +28,7 @@ BEHIND = 2
 UNKNOWN = -1
 
 
-@jit
+@jit_leaf
 def plane_sides(vertices, point, normal, eps):
     """``FRONT | BEHIND`` bits: on which sides of the plane (``point``, ``normal``) some of
     ``vertices : (V, 3)`` lie by more than ``eps``. Stops as soon as both are found."""
@@ -45,7 +45,7 @@ def plane_sides(vertices, point, normal, eps):
     return flags
 
 
-@jit
+@jit_leaf
 def _folded_away(corners, normal, point, enormal, eps, grazing):
     """Whether the element plane (``point``, ``enormal``) meets the shooter's plane at a
     dihedral angle ``α`` with ``sin²α <= grazing`` and passes at or below the shooter's plane
@@ -69,7 +69,7 @@ def _folded_away(corners, normal, point, enormal, eps, grazing):
     return True
 
 
-@jit
+@jit_leaf
 def nearest_blocker(corners, centroid, normal, polygon, vertices, elem_verts,
                     elem_centroid, elem_normal, elem_radius, elem_polygon, sides, eps, grazing,
                     side_eps, reach):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 
 #: Cells per edge of the uniform grid that :func:`contact_edges` bins the edges in. The grid
 #: only prunes the exact box test; the answer does not depend on it. Kernel CPU seconds at
@@ -14,7 +14,7 @@ from daskrad.kernels._jit import jit
 CELLS_PER_EDGE = 1.0
 
 
-@jit
+@jit_leaf
 def _cell(x, origin, size, n):
     """The cell along one axis holding coordinate ``x``, clipped to ``[0, n)``: monotone in
     ``x``, so two intervals that overlap share a cell."""
@@ -196,13 +196,13 @@ def contact_edges(corners, is_quad, normals, edge_a, edge_b, edge_owner, tol):
     return buf[:m].copy()
 
 
-@jit
+@jit_leaf
 def _side(p, m, c):
     """``m · p − c``: the signed distance of point ``p (3,)`` from the plane ``m · x = c``."""
     return p[0] * m[0] + p[1] * m[1] + p[2] * m[2] - c
 
 
-@jit
+@jit_leaf
 def _crosses(piece, k, n, a, b, tol):
     """Whether the segment ``ab`` runs through the interior of the convex ``piece[:k]``
     (normal ``n``) for more than ``tol`` (Cyrus–Beck clipping against the piece's edges)."""
@@ -269,7 +269,7 @@ def _cut(piece, k, s, tol, pos, neg):
     return n_pos, n_neg
 
 
-@jit
+@jit_leaf
 def _keep(f, quad, n, area_tol):
     """Whether the fanned quad (or triangle) ``f (4, 3)`` is more than a sliver: its area
     along ``n`` above ``area_tol`` (a cut line grazing a corner leaves slivers)."""

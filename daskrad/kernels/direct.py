@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.grid import aim_fan, any_hit_cached, any_hit_fan, new_fan
 from daskrad.kernels.lambert import lambert_polygon
 
@@ -50,7 +50,7 @@ LIGHT_VISIBLE = 1
 LIGHT_HIDDEN = 2
 
 
-@jit
+@jit_leaf
 def hash01(seed, k):
     """A uniform number in ``[0, 1)`` from two non-negative integers (splitmix64 finaliser)."""
     z = (np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15)
@@ -61,7 +61,7 @@ def hash01(seed, k):
     return float(z >> np.uint64(11)) * _INV_2_53
 
 
-@jit
+@jit_leaf
 def _sample_polygon(corners, count, u, v, out):
     """A point of the polygon for ``(u, v) ∈ [0,1)²``, written to ``out (3,)``: bilinear on a
     quad, the square-root warp on a triangle (both uniform in area for a parallelogram / any
@@ -83,7 +83,7 @@ def _sample_polygon(corners, count, u, v, out):
 PROBE_SIDE = 3
 
 
-@jit
+@jit_leaf
 def _stratum_point(corners, count, seed, m, ss, samples, k, out):
     """The jittered point of stratum ``k`` (of ``samples²``) of area light ``m``, written to
     ``out (3,)``."""
@@ -93,7 +93,7 @@ def _stratum_point(corners, count, seed, m, ss, samples, k, out):
     _sample_polygon(corners, count, u, v, out)
 
 
-@jit
+@jit_leaf
 def _kernel(p, n, en, q):
     """``cos θ cos θ' / r⁴`` (the weight of a sample ``q`` of a light with normal ``en`` seen
     from ``p`` with normal ``n``; ``1/r²`` more than the point-to-point kernel, for the
@@ -111,7 +111,7 @@ def _kernel(p, n, en, q):
     return cos_p * cos_q / (r2 * r2)
 
 
-@jit
+@jit_leaf
 def _unblocked(grid, fan, o, q, off, d, slot=-1):
     """Whether the shadow ray from ``o`` to ``q`` is free (``d``: scratch for its direction);
     hits within ``off`` of either end do not count. ``slot``: the fan's blocker cache slot
@@ -124,7 +124,7 @@ def _unblocked(grid, fan, o, q, off, d, slot=-1):
                 and any_hit_cached(grid, fan, o, d, off / dl, 1.0 - off / dl, slot))
 
 
-@jit
+@jit_leaf
 def _corner_stratum(c, samples):
     """Stratum of corner ``c`` (0–3) of the ``samples × samples`` grid."""
     i = 0 if c % 2 == 0 else samples - 1
@@ -132,7 +132,7 @@ def _corner_stratum(c, samples):
     return j * samples + i
 
 
-@jit
+@jit_leaf
 def _which_corner(k, samples):
     """Which corner stratum (0–3) stratum ``k`` is, or −1."""
     i = k % samples
@@ -352,7 +352,7 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
             out_h[c] += np.pi * em_radiance[m, c] * F * vis
 
 
-@jit
+@jit_leaf
 def _phong(n, lx, ly, lz, view, ks, ns, norm_spec, g, power, out_spec):
     """Add ``Ks (Ns+2)/(2π) max(0, r·v)^Ns · g · power`` (``r``: ``l`` mirrored about ``n``)."""
     dn = lx * n[0] + ly * n[1] + lz * n[2]

@@ -28,7 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.geometry import within_edges
 from daskrad.kernels.grid import closest_hit_one
 
@@ -66,7 +66,7 @@ _PIECES = 48
 _CORNERS = 24
 
 
-@jit
+@jit_leaf
 def _in_face(faces, f, x, y, z, nx, ny, nz, eps):
     """Whether the point ``(x, y, z)`` in face ``f``'s plane (unit normal ``n``) lies in one of
     its pieces, within ``eps`` of its edges (a point on an edge two pieces share is in both)."""
@@ -132,7 +132,7 @@ def face_hides(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, hint=-1,
     return -1
 
 
-@jit
+@jit_leaf
 def _plane(tri, ex, ey, ez):
     """The unit normal ``(fx, fy, fz)`` of triangle ``tri (3, 3)`` (its winding's side) and
     the signed distance ``fd`` of its plane from ``e`` along it; all zero for a degenerate
@@ -156,7 +156,7 @@ def _plane(tri, ex, ey, ez):
     return fx, fy, fz, fd
 
 
-@jit
+@jit_leaf
 def face_proves(grid, faces, k, ex, ey, ez, n, corners, count, en, off, hz, t0):
     """Whether the face of the grid's triangle ``k`` hides the whole light from ``e``.
 
@@ -292,7 +292,7 @@ def faces_hide(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, k0, extr
     return False
 
 
-@jit
+@jit_leaf
 def _less_face(grid, faces, k, ex, ey, ez, n, c1, hz, cur, cc, npc, hs, nxt, nc, rest, tmp,
                tiny):
     """The pieces ``cur[:npc]`` (``cc`` corners each) less the part of the light the face of
@@ -398,7 +398,7 @@ def _less_face(grid, faces, k, ex, ey, ez, n, c1, hz, cur, cc, npc, hs, nxt, nc,
     return npc
 
 
-@jit
+@jit_leaf
 def _clip(src, m, hs, ex, ey, ez, side, dst):
     """Sutherland–Hodgman: the part of the convex polygon ``src[:m]`` inside (``side`` 1:
     ``hs[:3] · (x − e) + hs[3] ≥ 0``) or outside (``side`` −1: ``≤ 0``) a
@@ -426,7 +426,7 @@ def _clip(src, m, hs, ex, ey, ez, side, dst):
     return nd
 
 
-@jit
+@jit_leaf
 def _area(poly, m):
     """Twice the area of the planar polygon ``poly[:m]`` (|Newell vector|)."""
     sx = 0.0

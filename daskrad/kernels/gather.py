@@ -15,7 +15,7 @@ import math
 import numpy as np
 from numba import prange
 
-from daskrad.kernels._jit import jit, jit_parallel
+from daskrad.kernels._jit import jit, jit_leaf, jit_parallel
 from daskrad.kernels.direct import hash01
 from daskrad.kernels.geometry import element_planes, orthonormal_basis, scene_diagonal
 from daskrad.kernels.grid import (
@@ -39,7 +39,7 @@ from daskrad.kernels.hemisphere import (
 from daskrad.kernels.pathtrace import tangent_frame
 
 
-@jit
+@jit_leaf
 def cosine_direction(d, n, t, s, u, v):
     """The cosine-distributed direction about ``n`` for ``(u, v) ∈ [0, 1)²``, written to
     ``d (3,)`` (``t, s``: tangents completing ``n``). Into a buffer, from scalars: the array
@@ -143,7 +143,7 @@ def gather_operator(grid, tri_verts, tri_element, elem_normal, elem_exclude, n_v
     return indptr, cols[:nnz].copy(), weights[:nnz].copy(), excluded
 
 
-@jit
+@jit_leaf
 def _add_hit(i, tri, bu, bv, d, tri_verts, tri_element, elem_normal, elem_exclude, slot,
              cols, weights, excluded, nnz):
     """Add the hit ``(tri, bu, bv)`` of a ray of direction ``d`` to row ``i`` (its
@@ -171,7 +171,7 @@ def _add_hit(i, tri, bu, bv, d, tri_verts, tri_element, elem_normal, elem_exclud
     return nnz
 
 
-@jit
+@jit_leaf
 def _end_row(i, row, nnz, count, slot, cols, weights, excluded, indptr):
     """Close row ``i`` (entries ``[row, nnz)``): each weight and the excluded emission over
     the ``count`` rays of a point, ``slot`` cleared for the next row."""

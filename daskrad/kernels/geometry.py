@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.tolerances import LEX_TIE
 
 
-@jit
+@jit_leaf
 def orthonormal_basis(nx, ny, nz):
     """Tangent vectors ``t1, t2`` completing the unit normal ``n`` to a right-handed frame.
 
@@ -31,7 +31,7 @@ def orthonormal_basis(nx, ny, nz):
     )
 
 
-@jit
+@jit_leaf
 def lex_less(ax, ay, az, bx, by, bz):
     """``a < b`` lexicographically: the canonical order of an edge's two endpoints.
 
@@ -126,7 +126,7 @@ def element_planes(vertices, elem_verts):
     return normal, offset
 
 
-@jit
+@jit_leaf
 def scene_diagonal(vertices):
     """Length of the bounding-box diagonal of ``vertices (V, 3) float64`` (0 when empty)."""
     if vertices.shape[0] == 0:
@@ -144,7 +144,7 @@ def scene_diagonal(vertices):
     return np.sqrt((hi0 - lo0) ** 2 + (hi1 - lo1) ** 2 + (hi2 - lo2) ** 2)
 
 
-@jit
+@jit_leaf
 def within_edges(c, m, x, y, z, nx, ny, nz, margin):
     """Whether the point ``(x, y, z)``, in the plane of the convex polygon ``c[:m] (m, 3)``
     (counter-clockwise about the unit normal ``n``), lies at least ``margin`` (a length)

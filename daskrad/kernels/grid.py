@@ -36,7 +36,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import prange
 
-from daskrad.kernels._jit import jit, jit_parallel
+from daskrad.kernels._jit import jit, jit_leaf, jit_parallel
 from daskrad.kernels.tolerances import (
     COORD_ROUND,
     FAN_MARGIN,
@@ -91,7 +91,7 @@ class Grid(NamedTuple):
 # Registration: separating-axis triangle–box overlap.
 
 
-@jit
+@jit_leaf
 def _separated(ax, ay, az, p0x, p0y, p0z, p1x, p1y, p1z, p2x, p2y, p2z, hx, hy, hz):
     """Whether axis ``a`` separates the triangle ``p`` (box-centred) from the box ``±h``."""
     if ax == 0.0 and ay == 0.0 and az == 0.0:
@@ -103,7 +103,7 @@ def _separated(ax, ay, az, p0x, p0y, p0z, p1x, p1y, p1z, p2x, p2y, p2z, hx, hy, 
     return min(q0, q1, q2) > r or max(q0, q1, q2) < -r
 
 
-@jit
+@jit_leaf
 def _tri_box_overlap(tri, cx, cy, cz, hx, hy, hz):
     """Akenine-Möller's test: triangle ``tri (3, 3)`` against the box ``c ± h`` (13 axes)."""
     p0x = tri[0, 0] - cx
@@ -142,7 +142,7 @@ def _tri_box_overlap(tri, cx, cy, cz, hx, hy, hz):
     return True
 
 
-@jit
+@jit_leaf
 def _cell_range(lo, hi, origin, cell, n):
     """Indices of the first and last cell along one axis that ``[lo, hi]`` touches."""
     a = int(np.floor((lo - origin) / cell))
@@ -321,7 +321,7 @@ def locator(triangles: np.ndarray) -> np.ndarray:
 # Ray–triangle test.
 
 
-@jit
+@jit_leaf
 def _intersect(tris, k, ox, oy, oz, dx, dy, dz, tmin, tmax, eps):
     """Möller–Trumbore on triangle ``tris[k]`` with an edge tolerance: ``(hit, t, u, v)`` for
     ``tmin < t < tmax``.
@@ -389,7 +389,7 @@ def _intersect(tris, k, ox, oy, oz, dx, dy, dz, tmin, tmax, eps):
 intersect = _intersect
 
 
-@jit
+@jit_leaf
 def _cross_norm2(ax, ay, az, bx, by, bz):
     """``|a × b|²``."""
     cx = ay * bz - az * by
@@ -448,7 +448,7 @@ NO_FAN = Fan(np.full(0, -1, np.int32), np.full(1, -1, np.int32), np.zeros(3), np
              np.zeros(1), np.full(0, -1, np.int64))
 
 
-@jit
+@jit_leaf
 def aim_fan(fan, grid, o, n, lift):
     """Make ``fan`` the rays from ``o (3,)`` that rise above the plane through it with unit
     normal ``n (3,)``; ``o`` lies ``lift`` (the rays' offset, a length) above its surface.
@@ -468,7 +468,7 @@ def aim_fan(fan, grid, o, n, lift):
                      + COORD_ROUND * (abs(o[0]) + abs(o[1]) + abs(o[2])))
 
 
-@jit
+@jit_leaf
 def _below(fan, tris, tri, key):
     """Whether triangle ``tri`` lies wholly below ``fan``'s plane (decided once per fan)."""
     s = fan.stamp[tri]
@@ -490,7 +490,7 @@ def _below(fan, tris, tri, key):
 # Traversal.
 
 
-@jit
+@jit_leaf
 def _slab(o, d, lo, hi, t0, t1):
     """Clip ``[t0, t1]`` to the slab ``lo <= o + t d <= hi`` of one axis (empty: t0 > t1)."""
     if d == 0.0:
@@ -504,7 +504,7 @@ def _slab(o, d, lo, hi, t0, t1):
     return max(t0, ta), min(t1, tb)
 
 
-@jit
+@jit_leaf
 def _start(o, d, t0, origin, cell, n):
     """Cell index at ``t0`` along one axis, its step, and the next boundary plane's index."""
     i = int(np.floor((o + t0 * d - origin) / cell)) if d != 0.0 else int(
@@ -517,7 +517,7 @@ def _start(o, d, t0, origin, cell, n):
     return i, 0, 0
 
 
-@jit
+@jit_leaf
 def _next_t(o, inv, i, plane_off, origin, cell):
     """``t`` at which the ray leaves cell ``i`` along one axis (inf when parallel); ``inv``
     is ``1 / d`` (0 when the ray is parallel to the axis's planes)."""
@@ -530,7 +530,7 @@ def _next_t(o, inv, i, plane_off, origin, cell):
     return (origin + (i + plane_off) * cell - o) * inv
 
 
-@jit
+@jit_leaf
 def _culls(fan, ox, oy, oz, dx, dy, dz, tmin):
     """Whether ``fan``'s cull holds for the ray: from its origin, rising above its plane,
     ``t >= 0``."""
@@ -539,7 +539,7 @@ def _culls(fan, ox, oy, oz, dx, dy, dz, tmin):
             and (dx * fan.normal[0] + dy * fan.normal[1] + dz * fan.normal[2]) > 0.0)
 
 
-@jit
+@jit_leaf
 def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode, fan):
     """Walk the grid: closest hit ``(t, tri, u, v)``, or the first hit found if ``any_mode``.
 
@@ -621,7 +621,7 @@ def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode, fan):
     return best_t, best_tri, best_u, best_v
 
 
-@jit
+@jit_leaf
 def closest_hit_one(grid, o, d, tmin, tmax):
     """Closest hit of one ray ``o + t d``, ``tmin < t < tmax``: ``(t, tri, u, v)``.
 
@@ -631,20 +631,20 @@ def closest_hit_one(grid, o, d, tmin, tmax):
     return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, False, NO_FAN)
 
 
-@jit
+@jit_leaf
 def any_hit_one(grid, o, d, tmin, tmax):
     """Whether the ray ``o + t d`` hits any triangle with ``tmin < t < tmax`` (shadow ray)."""
     return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, True, NO_FAN)[1] >= 0
 
 
-@jit
+@jit_leaf
 def closest_hit_fan(grid, fan, o, d, tmin, tmax):
     """:func:`closest_hit_one` for a ray of ``fan`` (:func:`aim_fan` at ``o``): the same
     answer, without testing the triangles it has found wholly below its plane."""
     return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, False, fan)
 
 
-@jit
+@jit_leaf
 def closest_hit_located(polygons, fan, grid, loc, o, d, tmin, tmax):
     """:func:`closest_hit_fan` through ``grid`` (the elements' triangles), found through
     ``polygons`` (a grid over the surfaces those triangles tile, :func:`daskrad.preprocess.
@@ -669,7 +669,7 @@ def closest_hit_located(polygons, fan, grid, loc, o, d, tmin, tmax):
     return locate_hit(grid, loc, o, d, tp, tmin, tmax)
 
 
-@jit
+@jit_leaf
 def locate_hit(grid, loc, o, d, tp, tmin, tmax):
     """The triangle of ``grid`` that holds the point ``o + tp d`` a ray found on a polygon
     (:func:`closest_hit_located`'s second half, also for hits found by an item buffer over
@@ -712,13 +712,13 @@ def locate_hit(grid, loc, o, d, tp, tmin, tmax):
     return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, False, NO_FAN)
 
 
-@jit
+@jit_leaf
 def any_hit_fan(grid, fan, o, d, tmin, tmax):
     """:func:`any_hit_one` for a ray of ``fan`` (:func:`aim_fan` at ``o``)."""
     return _walk(grid, o[0], o[1], o[2], d[0], d[1], d[2], tmin, tmax, True, fan)[1] >= 0
 
 
-@jit
+@jit_leaf
 def any_hit_cached(grid, fan, o, d, tmin, tmax, slot):
     """:func:`any_hit_fan`, trying first the triangle that blocked the last ray of cache
     ``slot`` (``fan.blocker``; a slot out of its range caches nothing). The same answer: a
@@ -741,7 +741,7 @@ def any_hit_cached(grid, fan, o, d, tmin, tmax, slot):
     return True
 
 
-@jit
+@jit_leaf
 def closest_hit_brute_one(grid, o, d, tmin, tmax):
     """:func:`closest_hit_one` by testing every triangle, in id order (ties: lowest id)."""
     tris, eps = grid.triangles, grid.eps
@@ -755,7 +755,7 @@ def closest_hit_brute_one(grid, o, d, tmin, tmax):
     return best_t, best_tri, best_u, best_v
 
 
-@jit
+@jit_leaf
 def any_hit_brute_one(grid, o, d, tmin, tmax):
     """:func:`any_hit_one` by testing every triangle."""
     tris, eps = grid.triangles, grid.eps

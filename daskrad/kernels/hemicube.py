@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.geometry import element_planes, lex_less, scene_diagonal
 from daskrad.kernels.hemisphere import in_frame, local_frame
 from daskrad.kernels.tolerances import SPHERE_PAD
@@ -84,7 +84,7 @@ def element_spheres(vertices, elem_verts):
     return centre, radius
 
 
-@jit
+@jit_leaf
 def side_rows(resolution):
     """Pixel rows of a side face: ``R // 2`` (at least 1) over the height ``[0, 1]``."""
     return max(resolution // 2, 1)
@@ -130,7 +130,7 @@ def delta_form_factors(resolution):
     return w, total
 
 
-@jit
+@jit_leaf
 def _clip(n, pa, pb, pc, ka, kb, kc, off, oa, ob, oc):
     """Sutherland–Hodgman: keep ``ka a + kb b + kc c > off`` of the polygon ``p (n,)`` into
     ``o``; returns the new count. Crossings are computed from the canonical endpoint."""
@@ -158,7 +158,7 @@ def _clip(n, pa, pb, pc, ka, kb, kc, off, oa, ob, oc):
     return m
 
 
-@jit
+@jit_leaf
 def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, sctr, srad, hz,
            resolution, weights, mask, xc, zc, lx, ly, lz, item, zbuf, xs, ys, xcross, cnt,
            loc, pa, pb, pc, qa, qb, qc, nl, out):

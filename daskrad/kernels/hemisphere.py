@@ -67,7 +67,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.geometry import element_planes, lex_less, orthonormal_basis, scene_diagonal
 from daskrad.kernels.tolerances import DEPTH_TIE
 
@@ -121,7 +121,7 @@ def split_table(edge_angle):
     return tab
 
 
-@jit
+@jit_leaf
 def _emit_edge(ax, ay, az, bx, by, bz, horizon, cos_thr, tab, xs, ys, m):
     """Append the projected polyline of the edge ``a → b`` (without ``b``) to ``xs, ys``.
 
@@ -217,7 +217,7 @@ def project_scratch():
             np.zeros(5, dtype=np.bool_))
 
 
-@jit
+@jit_leaf
 def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz, cos_thr, tab,
                     cx, cy, cz, qx, qy, qz, qclip, xs, ys):
     """Steps 2–5 for element ``e``: cull, clip at ``z = hz``, split edges, project.
@@ -289,7 +289,7 @@ def project_element(e, sx, sy, sz, elem_verts, enrm, eoff, lx, ly, lz, hz, cos_t
     return m, mm, c
 
 
-@jit
+@jit_leaf
 def depth_coefficients(plane_depth, qx, qy, qz, m, nlx, nly, nlz, c):
     """Nearness (larger is nearer) at disc point ``(x, y)`` as ``da x + db y + dc + de √(1-x²-y²)``.
 
@@ -337,7 +337,7 @@ def depth_coefficients(plane_depth, qx, qy, qz, m, nlx, nly, nlz, c):
     return -da, -db, -dc, 0.0
 
 
-@jit
+@jit_leaf
 def fill_polygon(xs, ys, mm, e, xc, yc, ncol, nrow, x0, inv_px, y0, inv_py, mask,
                  da, db, dc, de, xcross, cnt, item, zbuf):
     """Even-odd scan conversion of the closed polyline ``xs, ys (mm,)`` into a z-buffer.
@@ -416,14 +416,14 @@ def fill_polygon(xs, ys, mm, e, xc, yc, ncol, nrow, x0, inv_px, y0, inv_py, mask
     return cov
 
 
-@jit
+@jit_leaf
 def in_frame(t1x, t1y, t1z, t2x, t2y, t2z, nx, ny, nz, x, y, z):
     """The vector ``(x, y, z)`` in the frame ``(t1, t2, n)``: its three dot products."""
     return (t1x * x + t1y * y + t1z * z, t2x * x + t2y * y + t2z * z,
             nx * x + ny * y + nz * z)
 
 
-@jit
+@jit_leaf
 def frame_vertices(sx, sy, sz, t1x, t1y, t1z, t2x, t2y, t2z, nx, ny, nz, vertices, lx, ly,
                    lz):
     """``vertices (V, 3)`` relative to ``s`` in the frame ``(t1, t2, n)``, into
@@ -434,7 +434,7 @@ def frame_vertices(sx, sy, sz, t1x, t1y, t1z, t2x, t2y, t2z, nx, ny, nz, vertice
                                        vertices[v, 2] - sz)
 
 
-@jit
+@jit_leaf
 def local_frame(sx, sy, sz, snx, sny, snz, vertices, lx, ly, lz):
     """Vertices in the shooter's frame ``(t1, t2, n)`` into ``lx, ly, lz (V,)``; returns the
     tangents ``(t1x, t1y, t1z, t2x, t2y, t2z)``."""
@@ -691,7 +691,7 @@ def _shoot(sx, sy, sz, snx, sny, snz, vertices, elem_verts, enrm, eoff, hz,
         visible[e] = frac
 
 
-@jit
+@jit_leaf
 def _nearness(e, dx, dy, dz_, sx, sy, sz, enrm, eoff, t1x, t1y, t1z, t2x, t2y, t2z,
               snx, sny, snz):
     """``1/t`` along the local unit direction ``d`` to the plane of element ``e`` (<= 0 when
@@ -704,7 +704,7 @@ def _nearness(e, dx, dy, dz_, sx, sy, sz, enrm, eoff, t1x, t1y, t1z, t2x, t2y, t
     return (nlx * dx + nly * dy + nlz * dz_) / c
 
 
-@jit
+@jit_leaf
 def edge_capacity(edge_angle):
     """Length of the polyline buffers: a straight edge subtends < 180°, so it gives at most
     ``ceil(π/thr)`` pieces, plus the two spikes of a horizon edge; a clipped quad has at most

@@ -38,12 +38,12 @@ from __future__ import annotations
 import numpy as np
 from numba import prange
 
-from daskrad.kernels._jit import jit, jit_parallel
+from daskrad.kernels._jit import jit, jit_leaf, jit_parallel
 from daskrad.kernels.geometry import orthonormal_basis, within_edges
 from daskrad.kernels.grid import closest_hit_one
 
 
-@jit
+@jit_leaf
 def patch_blocks(corners, n_corners, light, n_light, pv, n_pv, off, delta):
     """Whether the convex planar polygon ``pv[:n_pv] (k, 3)`` (counter-clockwise about its
     normal) blocks every segment from the hull of ``corners[:n_corners]`` to the hull of

@@ -21,12 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.geometry import element_planes
 from daskrad.kernels.lambert import lambert_into
 
 
-@jit
+@jit_leaf
 def _corners(vertices, verts, out):
     """The polygon ``verts (4,) int`` (``-1`` fourth for a triangle) as ``out (4, 3)``;
     returns its corner count."""
@@ -37,7 +37,7 @@ def _corners(vertices, verts, out):
     return k
 
 
-@jit
+@jit_leaf
 def _one_sided(px, py, pz, nx, ny, nz, plane_n, plane_d, corners, count, sc):
     """Lambert's factor from ``(p, n)`` to a one-sided polygon with the plane
     ``plane_n · x = plane_d`` (0 where ``p`` is not strictly on its lit side), as

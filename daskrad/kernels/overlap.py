@@ -11,10 +11,10 @@ import math
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 
 
-@jit
+@jit_leaf
 def _pair_overlaps(c, n, centre, i, j, eps):
     """One pair of :func:`coplanar_overlap`."""
     for q in range(4):

@@ -21,11 +21,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.grid import any_hit_one
 
 
-@jit
+@jit_leaf
 def _sample(vertices, elem_verts, e, u, v, out):
     """Point ``(u, v)`` of element ``e``: bilinear on a quad, ``c0 + u(c1-c0) + v(c2-c0)`` on a
     triangle."""
@@ -42,7 +42,7 @@ def _sample(vertices, elem_verts, e, u, v, out):
                       + v * (vertices[i2, k] - vertices[i0, k]))
 
 
-@jit
+@jit_leaf
 def _visible(grid, o, q, d, offset):
     """Whether the segment from ``o`` to ``q`` (less ``offset`` at the end) is unblocked."""
     for k in range(3):

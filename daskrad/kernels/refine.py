@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 
 
-@jit
+@jit_leaf
 def resolve_tvertices_kernel(values, vertex, a, b):
     """Set ``values[vertex[i]] = (values[a[i]] + values[b[i]]) / 2`` in place, in order.
 

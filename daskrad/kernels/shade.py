@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.direct import LIGHT_TRACE, irradiance_one
 from daskrad.kernels.grid import new_fan
 
@@ -149,7 +149,7 @@ def pixel_modes(modes, elem, pixel, base_elem, base_class, own):
     return out
 
 
-@jit
+@jit_leaf
 def _interpolate(values, tri_verts, t, u, v, out, k):
     """``out[k] = (1 − u − v) values[a] + u values[b] + v values[c]``, ``(a, b, c) =
     tri_verts[t]``, summed in that order (inlined by LLVM: the same time as written out)."""

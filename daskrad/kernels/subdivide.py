@@ -13,10 +13,10 @@ no T-vertex inside a polygon, and Gouraud interpolation is continuous across pat
 
 from __future__ import annotations
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit_leaf
 
 
-@jit
+@jit_leaf
 def subdivide_quads(corners, nu, nv, eu, ev, vert_start, elem_start, patch_start,
                     vertices, elem_verts, elem_patch, patch_verts):
     """Split planar convex quads into ``(nu·eu) × (nv·ev)`` bilinear grids of element quads.
@@ -90,13 +90,13 @@ def subdivide_quads(corners, nu, nv, eu, ev, vert_start, elem_start, patch_start
                 p += 1
 
 
-@jit
+@jit_leaf
 def _lattice(i, j, k):
     """Row of lattice point ``(i, j)`` (``i + j ≤ k``) in a triangle's vertex block."""
     return j * (k + 1) - (j * (j - 1)) // 2 + i
 
 
-@jit
+@jit_leaf
 def _put_tri(elem_verts, elem_patch, e, p, v0, k, i, j, up):
     """Write fine triangle ``(i, j)`` (upward or inverted) as element ``e`` of patch ``p``.
 
@@ -115,7 +115,7 @@ def _put_tri(elem_verts, elem_patch, e, p, v0, k, i, j, up):
     elem_patch[e] = p
 
 
-@jit
+@jit_leaf
 def subdivide_triangles(corners, kp, ke, vert_start, elem_start, patch_start,
                         vertices, elem_verts, elem_patch, patch_verts):
     """Split triangles into ``kp²`` similar patch triangles of ``ke²`` similar elements each.

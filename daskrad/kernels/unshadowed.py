@@ -29,10 +29,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 
 
-@jit
+@jit_leaf
 def _hull_planes(pts, n_pts, planes):
     """Supporting planes of the points ``pts[:n_pts]`` into ``planes (m, 5)``: unit normal
     ``k``, offset ``kd`` and ``low = min_i (k·p_i − kd) <= 0`` (how far the points reach

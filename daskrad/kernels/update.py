@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit_leaf
 
 
-@jit
+@jit_leaf
 def apply_shot(radiosity, unshot, shooter, ids, factors, reflectance, elem_area, elem_patch,
                patch_area, acc, touched, order, relaxation):
     """Shoot patch ``shooter``'s unshot radiosity ``ΔB_i``, overshot, through the row
@@ -105,7 +105,7 @@ def shot_scratch(n_patches: int):
             np.zeros(n_patches, np.int32))
 
 
-@jit
+@jit_leaf
 def unshot_squares(unshot, patch_area):
     """``(Σ_p A_p |ΔB_p|², Σ_p A_p)`` of ``unshot : (P, 3)``, ``patch_area : (P,)``, summed
     in patch order."""
@@ -119,7 +119,7 @@ def unshot_squares(unshot, patch_area):
     return sq, total
 
 
-@jit
+@jit_leaf
 def unshot_rms(unshot, patch_area):
     """Area-weighted RMS of ``unshot : (P, 3)`` over patches and channels, ``patch_area :
     (P,)``; 0 when the area is 0 (one pass: numpy's temporaries made it a third of the

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from daskrad.kernels._jit import jit
+from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.grid import NO_FAN, closest_hit_located, intersect, locate_hit
 from daskrad.kernels.tolerances import COORD_ROUND
 
@@ -55,7 +55,7 @@ DEPTH_SLACK = 1e-6
 RAYS_PER_BIN = 48
 
 
-@jit
+@jit_leaf
 def _clip(X, Y, Z, m, zc, above, oX, oY, oZ):
     """Sutherland–Hodgman: the polygon ``X, Y, Z [:m]`` clipped to ``Z >= zc`` (``above``) or
     ``Z <= zc``, into ``oX, oY, oZ``; returns its corner count (at most ``m + 1``)."""
@@ -222,7 +222,7 @@ def view_bins(lo, hi, kind, order, x0, y0, x1, y1, inv_w, inv_h, nbx, nby):
     return count, items
 
 
-@jit
+@jit_leaf
 def _bin_range(ax, ay, bx, by, x0, y0, inv_w, inv_h, nbx, nby):
     """The bins ``i0..i1, j0..j1`` a box reaches, clamped (the edge bins reach on)."""
     i0 = _bin(ax, x0, inv_w, nbx)
@@ -232,7 +232,7 @@ def _bin_range(ax, ay, bx, by, x0, y0, inv_w, inv_h, nbx, nby):
     return i0, i1, j0, j1
 
 
-@jit
+@jit_leaf
 def _bin(x, x0, inv, n):
     g = (x - x0) * inv
     if not g > 0.0:              # also NaN: the first bin

@@ -1,0 +1,124 @@
+"""Leaves without reference counts against leaves with them (``daskrad/kernels/_jit.py``):
+whole runs, the two arms alternated in one benchmark.
+
+Each run is a ``daskrad run`` in a process of its own. Arm ``leaves`` is the kernels as
+shipped; arm ``counted`` sets ``DASKRAD_LEAF_REFCOUNTS=1`` (every leaf compiled with numba's
+reference counts, as before the leaves) and a numba cache of its own, compiled by ``daskrad
+warmup`` before the timings (as the shipped arm's) (kept in the temporary directory between benchmark runs; its
+warmup recompiles only when the kernels changed). Cases:
+
+- the Cornell box at its defaults (256 × 256, in-process on every core);
+- the Cornell box meshed to 73k elements (``--element-size 7``) in-process and on 2 thread
+  workers (``--workers 0`` / ``2``);
+- each ``--scene PATH`` on 2 workers, 352 shots as the paper's Fig. 4 (``--workers 2
+  --max-iterations 352``; e.g. the office interiors converted to OBJ, by path: never commit
+  them).
+
+Columns are the run report's seconds (direct, solve, render, total) and the process's wall
+time, medians of ``--passes`` passes; the ratio row is ``leaves / counted``. Each case's
+images of the two arms are compared bit for bit (``same``).
+
+``python -m benchmarks.bench_leaves [--passes 3] [--scene PATH ...] [--quick]``; writes
+``benchmarks/results/leaves.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.arms import medians, print_table
+from daskrad.io import read_exr
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = Path(__file__).parent / "results"
+CORNELL = ROOT / "scenes" / "cornell_box.obj"
+COLUMNS = ("direct", "solve", "render", "total", "wall")
+ARMS = ("leaves", "counted")
+#: The counted arm's numba cache (its warmup reuses it while the kernels are unchanged).
+COUNTED_CACHE = Path(tempfile.gettempdir()) / "daskrad-bench-leaves-counted"
+
+
+def _env(arm: str) -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    env.pop("DASKRAD_LEAF_REFCOUNTS", None)
+    if arm == "counted":
+        env["DASKRAD_LEAF_REFCOUNTS"] = "1"
+        env["NUMBA_CACHE_DIR"] = str(COUNTED_CACHE)
+    return env
+
+
+def _daskrad(arm: str, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "daskrad", *args], env=_env(arm),
+                          check=True, capture_output=True, text=True)
+
+
+def one_run(arm: str, scene: Path, extra: list[str], exr: Path) -> dict:
+    """One ``daskrad run`` of ``scene`` in arm ``arm``: the report's seconds and the wall."""
+    t = time.perf_counter()
+    _daskrad(arm, "run", str(scene), *extra, "-q", "-o", str(exr))
+    wall = time.perf_counter() - t
+    seconds = json.loads(exr.with_suffix(".json").read_text())["seconds"]
+    return {**{k: seconds.get(k, 0.0) for k in COLUMNS if k != "wall"}, "wall": wall}
+
+
+def cases(scenes: list[Path], quick: bool) -> list[tuple[str, Path, list[str]]]:
+    out = [("cornell 256²", CORNELL, [])]
+    if quick:
+        return out
+    out += [("box 73k, workers 0", CORNELL, ["--element-size", "7", "--workers", "0"]),
+            ("box 73k, workers 2", CORNELL, ["--element-size", "7", "--workers", "2"])]
+    out += [(f"{p.stem}, workers 2", p, ["--workers", "2", "--max-iterations", "352"])
+            for p in scenes]
+    return out
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--passes", type=int, default=3)
+    ap.add_argument("--scene", type=Path, action="append", default=[],
+                    help="an OBJ scene to run on 2 workers, 352 shots (repeatable)")
+    ap.add_argument("--quick", action="store_true", help="the Cornell box only, one pass")
+    args = ap.parse_args(argv)
+    passes = 1 if args.quick else args.passes
+    for p in args.scene:
+        if not p.is_file():
+            ap.error(f"{p}: no such scene")
+    for arm in ARMS:           # outside the timings; quick when already compiled
+        t = time.perf_counter()
+        _daskrad(arm, "warmup")
+        print(f"{arm}: kernels ready in {time.perf_counter() - t:.1f} s")
+    results = []
+    with tempfile.TemporaryDirectory(prefix="daskrad-bench-leaves-") as tmp:
+        for name, scene, extra in cases(args.scene, args.quick):
+            runs = {arm: [] for arm in ARMS}
+            images = {}
+            for k in range(passes):
+                # alternate which arm goes first, so a drift of the machine is shared
+                for arm in (ARMS if k % 2 == 0 else ARMS[::-1]):
+                    exr = Path(tmp) / f"{arm}.exr"
+                    runs[arm].append(one_run(arm, scene, extra, exr))
+                    images[arm] = read_exr(exr)
+            same = bool(np.array_equal(images["leaves"], images["counted"]))
+            rows = medians(runs, COLUMNS)
+            print(f"\n{name} (medians of {passes}; same bits: {same})")
+            print_table(rows, COLUMNS, ratio="leaves/cnt", label=12, width=9)
+            results.append({"case": name, "scene": str(scene), "args": extra, "same": same,
+                            "rows": rows})
+    RESULTS.mkdir(exist_ok=True)
+    out = RESULTS / "leaves.json"
+    out.write_text(json.dumps({"passes": passes, "cases": results}, indent=1))
+    print(f"\nwrote {out}")
+
+
+if __name__ == "__main__":
+    main()
