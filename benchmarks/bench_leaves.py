@@ -3,9 +3,10 @@ whole runs, the two arms alternated in one benchmark.
 
 Each run is a ``daskrad run`` in a process of its own. Arm ``leaves`` is the kernels as
 shipped; arm ``counted`` sets ``DASKRAD_LEAF_REFCOUNTS=1`` (every leaf compiled with numba's
-reference counts, as before the leaves) and a numba cache of its own, compiled by ``daskrad
-warmup`` before the timings (as the shipped arm's) (kept in the temporary directory between benchmark runs; its
-warmup recompiles only when the kernels changed). Cases:
+reference counts, as before the leaves) and a numba cache of its own. Both arms' caches are
+compiled by ``daskrad warmup`` before the timings; the counted arm's stays in the temporary
+directory between benchmark runs, and its warmup recompiles only when the kernels changed.
+Cases:
 
 - the Cornell box at its defaults (256 × 256, in-process on every core);
 - the Cornell box meshed to 73k elements (``--element-size 7``) in-process and on 2 thread
@@ -15,10 +16,11 @@ warmup recompiles only when the kernels changed). Cases:
   them).
 
 Columns are the run report's seconds (direct, solve, render, total) and the process's wall
-time, medians of ``--passes`` passes; the ratio row is ``leaves / counted``. Each case's
-images of the two arms are compared bit for bit (``same``).
+time, medians of ``--passes`` passes (in the order ABBA…, so each arm goes first as often);
+the ratio row is ``leaves / counted``. Each pass's images of the two arms are compared bit
+for bit (``same``: every pass's were).
 
-``python -m benchmarks.bench_leaves [--passes 3] [--scene PATH ...] [--quick]``; writes
+``python -m benchmarks.bench_leaves [--passes 4] [--scene PATH ...] [--quick]``; writes
 ``benchmarks/results/leaves.json``.
 """
 
@@ -84,7 +86,7 @@ def cases(scenes: list[Path], quick: bool) -> list[tuple[str, Path, list[str]]]:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--passes", type=int, default=3)
+    ap.add_argument("--passes", type=int, default=4)
     ap.add_argument("--scene", type=Path, action="append", default=[],
                     help="an OBJ scene to run on 2 workers, 352 shots (repeatable)")
     ap.add_argument("--quick", action="store_true", help="the Cornell box only, one pass")
@@ -101,14 +103,15 @@ def main(argv=None) -> None:
     with tempfile.TemporaryDirectory(prefix="daskrad-bench-leaves-") as tmp:
         for name, scene, extra in cases(args.scene, args.quick):
             runs = {arm: [] for arm in ARMS}
-            images = {}
+            same = True
             for k in range(passes):
                 # alternate which arm goes first, so a drift of the machine is shared
+                images = {}
                 for arm in (ARMS if k % 2 == 0 else ARMS[::-1]):
                     exr = Path(tmp) / f"{arm}.exr"
                     runs[arm].append(one_run(arm, scene, extra, exr))
                     images[arm] = read_exr(exr)
-            same = bool(np.array_equal(images["leaves"], images["counted"]))
+                same = same and bool(np.array_equal(images["leaves"], images["counted"]))
             rows = medians(runs, COLUMNS)
             print(f"\n{name} (medians of {passes}; same bits: {same})")
             print_table(rows, COLUMNS, ratio="leaves/cnt", label=12, width=9)

@@ -29,6 +29,7 @@ import os
 import sys
 import tempfile
 import time
+import types
 from pathlib import Path
 
 import numpy as np
@@ -281,16 +282,41 @@ def compile_all() -> None:
                 polygons=lit.occluders.grid, locator=loc, method=method), 0, len(points))
 
 
+def _callees(fn):
+    """``(name, object)`` of everything ``fn``'s code may call: its globals, the attributes
+    of a module among them, what a tuple among them holds, its defaults, and the same in
+    its nested code."""
+    globals_ = fn.py_func.__globals__
+
+    def named(code):
+        for name in code.co_names:
+            target = globals_.get(name)
+            if isinstance(target, types.ModuleType):
+                for attr in code.co_names:
+                    if hasattr(target, attr):
+                        yield f"{name}.{attr}", getattr(target, attr)
+            elif isinstance(target, tuple):
+                yield from ((f"{name}[{i}]", t) for i, t in enumerate(target))
+            else:
+                yield name, target
+        for const in code.co_consts:
+            if isinstance(const, types.CodeType):
+                yield from named(const)
+
+    yield from named(fn.py_func.__code__)
+    yield from (("a default", d) for d in fn.py_func.__defaults__ or ())
+
+
 def leaf_violations(modules=None) -> list[str]:
     """Where the kernels of ``modules`` (default: every module of :mod:`daskrad.kernels`) break
-    the leaves' contract (:mod:`daskrad.kernels._jit`): a leaf that calls a counted kernel,
-    and a leaf compiled in this process with a result that holds an array. Empty when they
-    keep it."""
+    the leaves' contract (:mod:`daskrad.kernels._jit`): a leaf that may call a counted kernel
+    (:func:`_callees`), and what :func:`daskrad.kernels.leaf_faults` finds in a leaf compiled
+    in this process. Empty when they keep it."""
     import importlib
     import pkgutil
 
     import daskrad.kernels
-    from daskrad.kernels import array_returns, is_leaf
+    from daskrad.kernels import is_leaf, leaf_faults
 
     if modules is None:
         modules = [importlib.import_module(f"daskrad.kernels.{info.name}")
@@ -301,12 +327,10 @@ def leaf_violations(modules=None) -> list[str]:
             if not (is_leaf(fn) and fn.__module__ == module.__name__):
                 continue
             where = f"{module.__name__.rsplit('.', 1)[-1]}.{name}"
-            code = fn.py_func.__code__
-            for called in code.co_names:
-                target = fn.py_func.__globals__.get(called)
-                if hasattr(target, "py_func") and not is_leaf(target):
-                    out.append(f"{where} calls the counted kernel {called}")
-            out += [f"{where} returns an array: {sig}" for sig in array_returns(fn)]
+            out += [f"{where} calls the counted kernel {called}"
+                    for called, target in _callees(fn)
+                    if hasattr(target, "py_func") and not is_leaf(target)]
+            out += [f"{where} {fault}" for fault in leaf_faults(fn)]
     return out
 
 
@@ -325,7 +349,8 @@ def warmup(verbose: bool = True) -> float:
         print("daskrad: compiling kernels...", file=sys.stderr, flush=True)
     compile_all()
     broken = leaf_violations()
-    if broken:        # a leaf returning an array corrupts the heap: never mark such a cache
+    if broken:      # a leaf returning an array corrupts the heap: keep none of this cache
+        drop_cache(directory)
         raise RuntimeError("kernels break the leaves' contract: " + "; ".join(broken))
     seconds = time.perf_counter() - t
     index = sorted(n for n in os.listdir(directory) if n.endswith(".nbi"))

@@ -131,7 +131,7 @@ def test_foot_of_a_wall_gathers_the_lit_floor_beside_it():
     # that Lambert's formula gives: the foot's radiance is ρ_w ρ_f E F / π. Element averages
     # take the light of points half an element up, where the floor fills less; the gather at
     # vertices beside a junction takes it at the vertex.
-    from daskrad.kernels.direct import lambert_polygon
+    from daskrad.kernels.lambert import lambert_polygon
 
     scene = _wall_on_floor()
     opts = dict(patch_size=1.0, element_size=0.5, subdivide=0.0)

@@ -11,36 +11,45 @@ pass leaves most of those pairs in place in functions with several exits. A shad
 through four such frames (``_unblocked``, ``any_hit_cached``, ``_walk``, ``_intersect``) with
 two six-array tuples: perf put 35 % of the classroom's per-pixel pass in ``NRT_incref`` and
 ``NRT_decref`` alone. A kernel that allocates nothing and returns no array needs none of it,
-so it is compiled with ``_nrt=False`` (:data:`jit_leaf`), where numba emits no reference
-counts at all. The contract, held by ``tests/test_jit.py`` and checked by
-:func:`daskrad.warmup.warmup` on every kernel it compiles (:func:`array_returns`):
+so it is compiled with ``_nrt=False`` (:func:`jit_leaf`), where numba emits no reference
+counts at all. The contract:
 
 - a leaf allocates nothing (numba refuses to compile one that does: "NRT required");
-- a leaf returns no array, nor a tuple holding one: the caller would count a reference it was
-  never given, and free the array under its owner (seen as heap corruption);
+- a leaf returns nothing that holds an array (an array, a tuple or an optional of one): the
+  caller would count a reference it was never given, and free the array under its owner
+  (seen as heap corruption);
 - a leaf calls only leaves (and numba's own functions): an array a counted kernel returned to
-  it would never be freed.
+  it would never be freed. Counted kernels say ``_nrt=True`` outright: numba otherwise takes
+  a callee's setting from the caller that first compiles it, and a counted kernel compiled
+  under a leaf would come out uncounted for every caller (the cache's key has no flags).
 
-Its arrays are borrowed from a counted caller that holds them for the whole call, so nothing
-a leaf reads is freed under it. ``DASKRAD_LEAF_REFCOUNTS=1`` compiles the leaves as counted
-kernels, for ``benchmarks/bench_leaves.py`` to compare the two; it takes effect only in a
-numba cache of its own (``NUMBA_CACHE_DIR``), as the cache's index does not tell them apart.
+:func:`daskrad.warmup.leaf_violations` checks it: every leaf's calls, read from its code, and
+for a leaf compiled in the process (as ``daskrad warmup`` compiles every kernel into an empty
+cache, at ``make install``) its result type and the absence of any reference count in its
+machine code and its callees' (:func:`leaf_faults`). Its arrays are borrowed from a counted
+caller that holds them for the whole call, so nothing a leaf reads is freed under it.
+
+``DASKRAD_LEAF_REFCOUNTS=1`` compiles the leaves as counted kernels, for
+``benchmarks/bench_leaves.py`` to compare the two; it needs a numba cache of its own
+(``NUMBA_CACHE_DIR``, else it is refused), as the cache's index does not tell them apart.
 """
 
 import os
 
 from numba import njit
-from numba.core import types
 
-jit = njit(nogil=True, cache=True)
+jit = njit(nogil=True, cache=True, _nrt=True)
 """Decorator for kernels: ``@jit``."""
 
-jit_parallel = njit(nogil=True, cache=True, parallel=True)
+jit_parallel = njit(nogil=True, cache=True, parallel=True, _nrt=True)
 """Decorator for kernels that use ``numba.prange``; only for in-process hot loops."""
 
 #: Whether the leaves are compiled with numba's reference counts (``DASKRAD_LEAF_REFCOUNTS=1``,
 #: for the benchmark that compares the two).
 LEAF_REFCOUNTS = os.environ.get("DASKRAD_LEAF_REFCOUNTS", "") == "1"
+if LEAF_REFCOUNTS and not os.environ.get("NUMBA_CACHE_DIR"):
+    raise RuntimeError("DASKRAD_LEAF_REFCOUNTS=1 needs a numba cache of its own: set "
+                       "NUMBA_CACHE_DIR too")
 
 _leaf_compile = jit if LEAF_REFCOUNTS else njit(nogil=True, cache=True, _nrt=False)
 
@@ -58,18 +67,20 @@ def is_leaf(dispatcher) -> bool:
     return getattr(dispatcher, "_daskrad_leaf", False)
 
 
-def _holds_array(t) -> bool:
-    if isinstance(t, types.Array):
-        return True
-    if isinstance(t, types.BaseTuple):
-        return any(_holds_array(x) for x in t.types)
-    return False
-
-
-def array_returns(dispatcher) -> list[str]:
-    """The compiled signatures of ``dispatcher`` whose result is or holds an array (a leaf
-    must have none): ``["(args) -> result", ...]``."""
-    return [f"{sig} -> {cres.signature.return_type}"
-            for sig, cres in dispatcher.overloads.items()
-            if _holds_array(cres.signature.return_type)]
-
+def leaf_faults(dispatcher) -> list[str]:
+    """What breaks a leaf's contract in the signatures of ``dispatcher`` compiled in this
+    process (a signature loaded from numba's cache cannot be read): a result that holds an
+    array, and a reference count anywhere in its code (its callees' linked in).
+    ``["(args) -> result: what", ...]``."""
+    out = []
+    for sig, cres in dispatcher.overloads.items():
+        rt = cres.signature.return_type
+        where = f"{sig} -> {rt}"
+        if cres.target_context.data_model_manager[rt].contains_nrt_meminfo():
+            out.append(f"{where}: its result holds an array")
+        # compiled here, not loaded from the cache; and the leaves compiled as leaves
+        if not (LEAF_REFCOUNTS or getattr(cres.library, "_disable_inspection", True)):
+            ir = cres.library.get_llvm_str()
+            if "@NRT_incref" in ir or "@NRT_decref" in ir:
+                out.append(f"{where}: counts references")
+    return out

@@ -31,11 +31,13 @@ workers, and soft shadows come out as fine noise instead of bands.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.grid import aim_fan, any_hit_cached, any_hit_fan, new_fan
-from daskrad.kernels.lambert import lambert_polygon
+from daskrad.kernels.lambert import lambert_into
 
 _INV_2_53 = 1.0 / 9007199254740992.0
 
@@ -48,6 +50,24 @@ _INV_2_53 = 1.0 / 9007199254740992.0
 LIGHT_TRACE = 0
 LIGHT_VISIBLE = 1
 LIGHT_HIDDEN = 2
+
+
+class Scratch(NamedTuple):
+    """:func:`irradiance_one`'s working arrays, made once per batch of points
+    (:func:`new_scratch`): a leaf allocates nothing (:mod:`daskrad.kernels._jit`)."""
+
+    o: np.ndarray       #: (3,) float64: where the point's shadow rays start
+    d: np.ndarray       #: (3,) float64: a shadow ray's direction
+    q: np.ndarray       #: (3,) float64: a light's sample point
+    seen: np.ndarray    #: (4,) int8: the probed corner strata (-1 untraced, 0 blocked, 1 free)
+    poly: np.ndarray    #: (7, 5) float64: :func:`daskrad.kernels.lambert.lambert_into`'s
+
+
+@jit
+def new_scratch():
+    """A :class:`Scratch` for :func:`irradiance_one`."""
+    return Scratch(np.empty(3), np.empty(3), np.empty(3), np.full(4, -1, np.int8),
+                   np.empty((7, 5)))
 
 
 @jit_leaf
@@ -142,8 +162,8 @@ def _which_corner(k, samples):
     return (0 if i == 0 else 1) + (0 if j == 0 else 2)
 
 
-@jit
-def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
+@jit_leaf
+def irradiance_one(grid, fan, work, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_irr,
                    em_corners, em_count, em_normal, em_radiance, em_area, samples,
                    view, ks, ns, modes, out_h, out_spec, out_class, probe=False,
                    lambert_first=True):
@@ -157,6 +177,8 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
         from one origin above the surface, so its own triangles are tested once, not per ray;
         with a blocker cache slot per area light (``new_fan(grid, M)``), a ray first tries
         the triangle that blocked the last ray to its light (the same answer, sooner).
+    work : Scratch
+        Working arrays (:func:`new_scratch`), overwritten.
     p, n : (3,) float64
         The point and its unit normal (the lit side).
     pa : (3,) float64
@@ -218,12 +240,12 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
     # shadow rays of every light leave from pa: for a vertex on a junction (a wall's top edge
     # under the ceiling) a surface through the vertex is then met beyond the offset and
     # blocks, instead of letting light through the closed surface
-    o = np.empty(3)
+    o = work.o
     for k in range(3):
         o[k] = pa[k] + off * n[k]
     aim_fan(fan, grid, o, n, off)
-    d = np.empty(3)
-    q = np.empty(3)       # a light's sample point
+    d = work.d
+    q = work.q            # a light's sample point
     # ---- point lights
     for li in range(pl_pos.shape[0]):
         # cos θ / r² from the surface point itself (not the offset origin): exact I cosθ/r²
@@ -265,7 +287,7 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
     ss = samples * samples
     # probing (the per-pixel pass): the light's four corner strata are traced first
     probing = probe and samples >= PROBE_SIDE
-    seen = np.full(4 if probing else 0, -1, np.int8)   # per corner: -1 untraced, 0 blocked, 1 free
+    seen = work.seen      # per corner: -1 untraced, 0 blocked, 1 free (only when probing)
     # F after the rays where nothing else needs it (lambert_first)
     lazy = not (lambert_first or spec)
     for m in range(em_corners.shape[0]):
@@ -284,7 +306,8 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
             continue
         F = 0.0
         if not lazy:
-            F = lambert_polygon(p[0], p[1], p[2], n[0], n[1], n[2], em_corners[m], cnt)
+            F = lambert_into(p[0], p[1], p[2], n[0], n[1], n[2], em_corners[m], cnt,
+                             work.poly)
             if F <= 0.0:
                 continue
         # agree: -1 trace every stratum; 0 / 1: the four corner strata all face both ways and
@@ -340,7 +363,8 @@ def irradiance_one(grid, fan, p, pa, n, off, seed, pl_pos, pl_int, dl_dir, dl_ir
                 # point (wsum > 0), so some of it is above the horizon: hidden.
                 out_class[m] = LIGHT_HIDDEN
                 continue
-            F = lambert_polygon(p[0], p[1], p[2], n[0], n[1], n[2], em_corners[m], cnt)
+            F = lambert_into(p[0], p[1], p[2], n[0], n[1], n[2], em_corners[m], cnt,
+                             work.poly)
             if F <= 0.0:
                 continue
         if wvis == wsum:
@@ -383,8 +407,10 @@ def irradiance_points(grid, points, area_points, normals, seeds, off, pl_pos, pl
     view = np.zeros(3)
     modes = np.full(n_em, LIGHT_TRACE, np.int8)
     fan = new_fan(grid, n_em)      # a blocker cache slot per area light
+    work = new_scratch()
     for i in range(npts):
-        irradiance_one(grid, fan, points[i], area_points[i], normals[i], off, seeds[i], pl_pos,
-                       pl_int, dl_dir, dl_irr, em_corners, em_count, em_normal, em_radiance,
-                       em_area, samples, view, ks, 0.0, modes, out[i], spec, classes[i])
+        irradiance_one(grid, fan, work, points[i], area_points[i], normals[i], off, seeds[i],
+                       pl_pos, pl_int, dl_dir, dl_irr, em_corners, em_count, em_normal,
+                       em_radiance, em_area, samples, view, ks, 0.0, modes, out[i], spec,
+                       classes[i])
     return out, classes

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from daskrad.kernels._jit import jit, jit_leaf
-from daskrad.kernels.direct import LIGHT_TRACE, irradiance_one
+from daskrad.kernels.direct import LIGHT_TRACE, irradiance_one, new_scratch
 from daskrad.kernels.grid import new_fan
 
 
@@ -78,8 +78,9 @@ def direct_at_hits(grid, points, normals, views, seeds, ks, ns, off, pl_pos, pl_
         classes = np.zeros((n, em_corners.shape[0]), np.int8)
     else:
         classes = out_class
+    work = new_scratch()
     for i in range(n):
-        irradiance_one(grid, fan, points[i], points[i], normals[i], off, seeds[i], pl_pos,
+        irradiance_one(grid, fan, work, points[i], points[i], normals[i], off, seeds[i], pl_pos,
                        pl_int, dl_dir, dl_irr, em_corners, em_count, em_normal, em_radiance,
                        em_area, samples, views[i], ks[i], ns[i], modes[i], H[i], S[i],
                        classes[i], probe, lambert_first)
