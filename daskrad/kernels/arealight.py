@@ -457,12 +457,13 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid
     return n_c
 
 
-@jit
-def _centroid_ray(grid, ex, ey, ez, corners, count, off):
+@jit_leaf
+def _centroid_ray(grid, ex, ey, ez, corners, count, off, ray):
     """Visibility ``0.0``/``1.0`` of the light's centroid by one shadow ray from the eye: the
-    fallback for a light too thin to hold a pixel centre of its own window."""
-    o = np.empty(3)
-    d = np.empty(3)
+    fallback for a light too thin to hold a pixel centre of its own window. ``ray (2, 3)``:
+    scratch for the ray's origin and direction."""
+    o = ray[0]
+    d = ray[1]
     o[0] = ex
     o[1] = ey
     o[2] = ez
@@ -668,7 +669,7 @@ def _candidate_planes(planes, count, off, ex, ey, ez, n, hz, cpl):
     cpl[count + 1, 3] = n[0] * ex + n[1] * ey + n[2] * ez + hz
 
 
-@jit
+@jit_leaf
 def _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid, cand, n_c,
             i0, i1, j0, j1, k0, k1, cpl, sc, prune=True):
     """:func:`_candidates` over the cells of the hinted occluders' bounding boxes within
@@ -677,17 +678,18 @@ def _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid, cand,
     found = n_c
     tris = grid.triangles
     origin, cell, dims = grid.origin, grid.cell, grid.dims
-    lo3 = np.empty(3)
-    hi3 = np.empty(3)
     nh = hint.shape[0] - 1
     for h in range(min(hint[nh], nh)):
         t = hint[h]
-        for a in range(3):
-            lo3[a] = min(tris[t, 0, a], min(tris[t, 1, a], tris[t, 2, a]))
-            hi3[a] = max(tris[t, 0, a], max(tris[t, 1, a], tris[t, 2, a]))
-        a0, a1 = _cell_range(lo3[0], hi3[0], origin[0], cell[0], dims[0])
-        b0, b1 = _cell_range(lo3[1], hi3[1], origin[1], cell[1], dims[1])
-        c0, c1 = _cell_range(lo3[2], hi3[2], origin[2], cell[2], dims[2])
+        a0, a1 = _cell_range(min(tris[t, 0, 0], min(tris[t, 1, 0], tris[t, 2, 0])),
+                             max(tris[t, 0, 0], max(tris[t, 1, 0], tris[t, 2, 0])),
+                             origin[0], cell[0], dims[0])
+        b0, b1 = _cell_range(min(tris[t, 0, 1], min(tris[t, 1, 1], tris[t, 2, 1])),
+                             max(tris[t, 0, 1], max(tris[t, 1, 1], tris[t, 2, 1])),
+                             origin[1], cell[1], dims[1])
+        c0, c1 = _cell_range(min(tris[t, 0, 2], min(tris[t, 1, 2], tris[t, 2, 2])),
+                             max(tris[t, 0, 2], max(tris[t, 1, 2], tris[t, 2, 2])),
+                             origin[2], cell[2], dims[2])
         a0, a1 = max(a0, i0), min(a1, i1)
         b0, b1 = max(b0, j0), min(b1, j1)
         c0, c1 = max(c0, k0), min(c1, k1)
@@ -698,11 +700,11 @@ def _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid, cand,
     return found
 
 
-@jit
+@jit_leaf
 def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_thr, tab,
                      planes, stamp, sid, cand, lx, ly, lz, ev, enrm, eoff, scr, qclip, xs, ys,
                      xcross, cnt, item, zbuf, mask, xc, yc, slabs, hint, hid, clip, poly,
-                     cpl, sc, prune=True):
+                     cpl, sc, ray, prune=True):
     """``(V, n_candidates)``: the visible fraction of one light from ``p`` (module docstring).
 
     ``corners (count, 3)`` is the light, ``en (3,)`` its unit emitting normal (``p`` must lie
@@ -816,7 +818,7 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
             if status == 1:
                 return 1.0, found
             if status == 2:
-                return _centroid_ray(grid, ex, ey, ez, corners, count, off), found
+                return _centroid_ray(grid, ex, ey, ez, corners, count, off, ray), found
             ready = True
             # the occluders' clip, only for a pair that draws any (most have no candidate)
             clip_planes(ex, ey, ez, corners, count, WINDOW_CLIP_ANGLE, clip)
@@ -915,6 +917,7 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
     poly = np.empty((6, 8))
     cpl = np.empty((6, 4))      # a candidate's half-spaces: 4 faces, light, horizon
     sc = np.empty((6, 10))      # ... a triangle clipped by 6 planes keeps at most 9 corners
+    ray = np.empty((2, 3))      # the thin light's centroid ray
     lx = np.empty(8)
     ly = np.empty(8)
     lz = np.empty(8)
@@ -968,7 +971,7 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
                                         cos_thr, tab, planes, stamp, sid, cand, lx, ly, lz,
                                         ev, enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item,
                                         zbuf, mask, xc, yc, slabs, hints[m], hid, clip,
-                                        poly, cpl, sc, prune)
+                                        poly, cpl, sc, ray, prune)
             sid += 1
             if hint > 0 and vis == 0.0 and hid[hid.shape[0] - 1] > 0:
                 hints[m, :] = hid
