@@ -249,6 +249,25 @@ def test_shadow_probes_keep_the_traced_bits_unless_the_corner_strata_agree(sampl
 
 
 
+@pytest.mark.parametrize("probe", [False, True])
+def test_a_batch_of_hits_has_the_bits_of_each_hit_alone(probe):
+    # irradiance_one's working arrays (direct.new_scratch) and the fan's blocker cache are
+    # made once per batch and carried from hit to hit: nothing of one hit may reach the next
+    # (the probed corners' verdicts among them)
+    from daskrad.kernels.direct import LIGHT_TRACE
+    from daskrad.kernels.shade import direct_at_hits
+
+    run, p = _blade_hits(n=120)
+    batch = run(LIGHT_TRACE, probe)
+    up = np.array([[0.0, 1.0, 0.0]])
+    alone = np.concatenate([direct_at_hits(
+        run.grid, p[i:i + 1].copy(), up, up, np.array([i], np.int64), np.zeros((1, 3)),
+        np.zeros(1), 1e-7, *run.lights, 4, np.full((1, 1), LIGHT_TRACE, np.int8), probe)[0]
+        for i in range(len(p))])
+    assert 0 < (batch[:, 0] < batch[:, 0].max()).sum() < len(p)     # shadowed and lit hits
+    assert np.array_equal(batch, alone)
+
+
 @pytest.mark.parametrize("samples", [1, 2, 4])
 def test_the_per_pixel_pass_has_the_vertex_pass_bits_with_lambert_after_the_rays(samples):
     # The per-pixel pass reads no class, so it computes Lambert's F of a light only after one

@@ -23,11 +23,13 @@ counts at all. The contract:
   a callee's setting from the caller that first compiles it, and a counted kernel compiled
   under a leaf would come out uncounted for every caller (the cache's key has no flags).
 
-:func:`daskrad.warmup.leaf_violations` checks it: every leaf's calls, read from its code, and
-for a leaf compiled in the process (as ``daskrad warmup`` compiles every kernel into an empty
-cache, at ``make install``) its result type and the absence of any reference count in its
-machine code and its callees' (:func:`leaf_faults`). Its arrays are borrowed from a counted
-caller that holds them for the whole call, so nothing a leaf reads is freed under it.
+:func:`daskrad.warmup.leaf_violations` checks it: every leaf's calls, read from its Python
+code, and for a leaf compiled in the process its result type and the absence of any call to a
+reference count in its LLVM IR (:func:`leaf_faults`). ``daskrad warmup`` runs it after
+compiling every kernel, which it does into an empty cache whenever the kernels changed since
+the cache was filled (``make install`` in a fresh clone, CI's included). A leaf's arrays are
+borrowed from a counted caller that holds them for the whole call, so nothing a leaf reads is
+freed under it.
 
 ``DASKRAD_LEAF_REFCOUNTS=1`` compiles the leaves as counted kernels, for
 ``benchmarks/bench_leaves.py`` to compare the two; it needs a numba cache of its own
@@ -63,14 +65,14 @@ def jit_leaf(fn):
 
 
 def is_leaf(dispatcher) -> bool:
-    """Whether ``dispatcher`` was made by :data:`jit_leaf` (in either of its compilations)."""
+    """Whether ``dispatcher`` was made by :func:`jit_leaf` (in either of its compilations)."""
     return getattr(dispatcher, "_daskrad_leaf", False)
 
 
 def leaf_faults(dispatcher) -> list[str]:
-    """What breaks a leaf's contract in the signatures of ``dispatcher`` compiled in this
-    process (a signature loaded from numba's cache cannot be read): a result that holds an
-    array, and a reference count anywhere in its code (its callees' linked in).
+    """What breaks a leaf's contract in the signatures of ``dispatcher`` known to this process:
+    a result that holds an array, and, for a signature compiled here (the LLVM IR of one
+    loaded from numba's cache cannot be read), a call to a reference count in its IR.
     ``["(args) -> result: what", ...]``."""
     out = []
     for sig, cres in dispatcher.overloads.items():
@@ -81,6 +83,6 @@ def leaf_faults(dispatcher) -> list[str]:
         # compiled here, not loaded from the cache; and the leaves compiled as leaves
         if not (LEAF_REFCOUNTS or getattr(cres.library, "_disable_inspection", True)):
             ir = cres.library.get_llvm_str()
-            if "@NRT_incref" in ir or "@NRT_decref" in ir:
+            if "call void @NRT_incref" in ir or "call void @NRT_decref" in ir:
                 out.append(f"{where}: counts references")
     return out
