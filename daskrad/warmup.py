@@ -8,8 +8,11 @@ CPU on the 2-core development machine), far more than a warm run of the Cornell 
   every kind of light and material through the real pipeline, and calls every form-factor
   method and area-light method on it: the kernels are compiled for exactly the argument types
   a run passes, and numba writes them to its cache;
+- it checks the leaves' contract on everything it compiled (:func:`leaf_violations`,
+  :mod:`daskrad.kernels._jit`), and drops the cache and fails when a kernel breaks it;
 - it then writes a marker (:data:`MARKER`) beside the cache naming the kernel sources' stamps
-  (mtime and size, what numba's own cache checks) and the cache index files it found;
+  (mtime and size, what numba's own cache checks, and whether the leaves were compiled
+  counted) and the cache index files it found;
 - :func:`is_warm` reads the marker back: cheap (one ``listdir`` and a ``stat`` per kernel
   file), it tells the command line whether a run would compile, so it can say so in one line
   on stderr (:func:`announce`) instead of sitting at 0 % for half a minute.
