@@ -670,6 +670,14 @@ def _candidate_planes(planes, count, off, ex, ey, ez, n, hz, cpl):
 
 
 @jit_leaf
+def _tri_cell_range(tris, t, a, origin, cell, dims):
+    """:func:`_cell_range` of triangle ``t``'s extent along axis ``a``."""
+    return _cell_range(min(tris[t, 0, a], min(tris[t, 1, a], tris[t, 2, a])),
+                       max(tris[t, 0, a], max(tris[t, 1, a], tris[t, 2, a])),
+                       origin[a], cell[a], dims[a])
+
+
+@jit_leaf
 def _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid, cand, n_c,
             i0, i1, j0, j1, k0, k1, cpl, sc, prune=True):
     """:func:`_candidates` over the cells of the hinted occluders' bounding boxes within
@@ -681,15 +689,9 @@ def _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid, cand,
     nh = hint.shape[0] - 1
     for h in range(min(hint[nh], nh)):
         t = hint[h]
-        a0, a1 = _cell_range(min(tris[t, 0, 0], min(tris[t, 1, 0], tris[t, 2, 0])),
-                             max(tris[t, 0, 0], max(tris[t, 1, 0], tris[t, 2, 0])),
-                             origin[0], cell[0], dims[0])
-        b0, b1 = _cell_range(min(tris[t, 0, 1], min(tris[t, 1, 1], tris[t, 2, 1])),
-                             max(tris[t, 0, 1], max(tris[t, 1, 1], tris[t, 2, 1])),
-                             origin[1], cell[1], dims[1])
-        c0, c1 = _cell_range(min(tris[t, 0, 2], min(tris[t, 1, 2], tris[t, 2, 2])),
-                             max(tris[t, 0, 2], max(tris[t, 1, 2], tris[t, 2, 2])),
-                             origin[2], cell[2], dims[2])
+        a0, a1 = _tri_cell_range(tris, t, 0, origin, cell, dims)
+        b0, b1 = _tri_cell_range(tris, t, 1, origin, cell, dims)
+        c0, c1 = _tri_cell_range(tris, t, 2, origin, cell, dims)
         a0, a1 = max(a0, i0), min(a1, i1)
         b0, b1 = max(b0, j0), min(b1, j1)
         c0, c1 = max(c0, k0), min(c1, k1)
