@@ -1,10 +1,22 @@
 """The two-arm tables of the benchmarks that alternate a change against what it replaces
-(bench_client, bench_resume, bench_store): medians per arm and the first arm's ratio to the
-second, measured in one run."""
+(bench_client, bench_resume, bench_store, bench_leaves): medians per arm and the first arm's
+ratio to the second, measured in one run; and the environment of an arm run as a process."""
 
 from __future__ import annotations
 
+import os
 import statistics
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def process_env(**extra: str) -> dict:
+    """The environment of a benchmark's ``daskrad`` process: this one's, with ``extra`` set and
+    the repository first on ``PYTHONPATH`` (the arm runs this checkout's code)."""
+    env = dict(os.environ, **extra)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    return env
 
 
 def medians(runs: dict[str, list[dict]], columns) -> list[dict]:

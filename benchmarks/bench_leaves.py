@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -37,10 +36,9 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.arms import medians, print_table
+from benchmarks.arms import ROOT, medians, print_table, process_env
 from daskrad.io import read_exr
 
-ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).parent / "results"
 CORNELL = ROOT / "scenes" / "cornell_box.obj"
 COLUMNS = ("direct", "solve", "render", "total", "wall")
@@ -50,12 +48,10 @@ COUNTED_CACHE = Path(tempfile.gettempdir()) / "daskrad-bench-leaves-counted"
 
 
 def _env(arm: str) -> dict:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    env.pop("DASKRAD_LEAF_REFCOUNTS", None)
     if arm == "counted":
-        env["DASKRAD_LEAF_REFCOUNTS"] = "1"
-        env["NUMBA_CACHE_DIR"] = str(COUNTED_CACHE)
+        return process_env(DASKRAD_LEAF_REFCOUNTS="1", NUMBA_CACHE_DIR=str(COUNTED_CACHE))
+    env = process_env()
+    env.pop("DASKRAD_LEAF_REFCOUNTS", None)
     return env
 
 

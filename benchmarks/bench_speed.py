@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.arms import process_env
 from benchmarks.bench_reference import cached_path_trace, errors
 from benchmarks.bench_reference import reference as cornell_reference
 from daskrad.io import read_exr
@@ -96,12 +97,6 @@ QUICK_ITERATIONS = 64
 
 def _python() -> list[str]:
     return [sys.executable]
-
-
-def _env(**extra) -> dict:
-    env = dict(os.environ, **extra)
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    return env
 
 
 def lit_room_reference() -> tuple[np.ndarray, float]:
@@ -169,7 +164,7 @@ def _import_ms(module: str) -> float:
     times = []
     for _ in range(3):
         done = subprocess.run(_python() + ["-X", "importtime", "-c", f"import {module}"],
-                              capture_output=True, text=True, env=_env(), cwd=ROOT)
+                              capture_output=True, text=True, env=process_env(), cwd=ROOT)
         line = [ln for ln in done.stderr.splitlines() if ln.rstrip().endswith(f"| {module}")]
         times.append(int(re.split(r"\s*\|\s*", line[-1])[1]) / 1000.0)
     return float(np.median(times))
@@ -179,7 +174,8 @@ def _wall(cmd: list[str], env: dict | None = None, repeats: int = 3) -> float:
     times = []
     for _ in range(repeats):
         t = time.perf_counter()
-        done = subprocess.run(cmd, capture_output=True, text=True, env=env or _env(), cwd=ROOT)
+        done = subprocess.run(cmd, capture_output=True, text=True, env=env or process_env(),
+                              cwd=ROOT)
         times.append(time.perf_counter() - t)
         if done.returncode != 0:
             raise RuntimeError(f"{' '.join(cmd)} failed: {done.stderr}")
@@ -228,7 +224,7 @@ def startup(cold: bool) -> dict:
     if cold:
         out.update(exit_pair())
         with tempfile.TemporaryDirectory(prefix="daskrad-cold-") as tmp:
-            env = _env(NUMBA_CACHE_DIR=str(Path(tmp) / "numba"))
+            env = process_env(NUMBA_CACHE_DIR=str(Path(tmp) / "numba"))
             cmd = daskrad + ["run", str(CORNELL), "-o", str(Path(tmp) / "c.exr"), "-q"]
             out["daskrad warmup s"] = _wall(daskrad + ["warmup"], env, repeats=1)
             out["first run after warmup s"] = _wall(cmd, env, repeats=1)
