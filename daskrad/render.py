@@ -1378,17 +1378,6 @@ class GatherOperator(NamedTuple):
     weights: np.ndarray
     excluded: np.ndarray
 
-    @staticmethod
-    def concatenate(parts: list[GatherOperator]) -> GatherOperator:
-        """The rows of ``parts`` one after the other."""
-        offsets = np.cumsum([0] + [len(p.cols) for p in parts])
-        indptr = np.concatenate([[0]] + [p.indptr[1:] + o
-                                         for p, o in zip(parts, offsets[:-1], strict=True)])
-        return GatherOperator(indptr.astype(np.int64),
-                              np.concatenate([p.cols for p in parts]),
-                              np.concatenate([p.weights for p in parts]),
-                              np.concatenate([p.excluded for p in parts]))
-
     def rows(self, start: int, stop: int) -> GatherOperator:
         """Its rows ``[start, stop)``: what :func:`gather_vertices` gives for those vertices
         (a vertex's rows do not depend on the range it is computed in)."""
@@ -1402,6 +1391,34 @@ class GatherOperator(NamedTuple):
 
         return apply_operator(self.indptr, self.cols, self.weights,
                               np.ascontiguousarray(radiance, dtype=np.float64))
+
+
+class GatherBlocks:
+    """The gather's operator as the row blocks its tasks computed (:class:`GatherOperator`
+    each), one after the other: what one operator of all their rows gives, without copying
+    them into one. A view's operator holds ~600 nonzeros a vertex (RenderPark's classroom:
+    15,477 junction vertices, 9.9 million nonzeros, 160 MB), and joining its blocks took
+    more time than applying them three times (:func:`_gather_change`) and as much memory
+    again (``benchmarks/bench_operator.py``, ``for_view`` in fresh processes, medians of 4:
+    the classroom 5.00 → 4.66 s and a peak of 544 → 389 MiB; the 73k box 0.72 → 0.71 s,
+    325 → 280 MiB; the same bits).
+
+    excluded : (n, 3) float64
+        The blocks' :attr:`GatherOperator.excluded`, in order.
+    """
+
+    def __init__(self, parts: list[GatherOperator]):
+        self.parts = list(parts)
+        self.excluded = (np.concatenate([p.excluded for p in self.parts]) if self.parts
+                         else np.zeros((0, 3)))
+
+    def mean_radiance(self, radiance: np.ndarray) -> np.ndarray:
+        """``(n, 3)``: ``G · radiance``, block by block; each row summed in its stored order,
+        so the bits of one operator of all the rows."""
+        values = np.ascontiguousarray(radiance, dtype=np.float64)
+        if not self.parts:
+            return np.zeros((0, values.shape[1]))
+        return np.concatenate([p.mean_radiance(values) for p in self.parts])
 
 
 def gather_vertices(gctx: GatherContext, start: int, stop: int) -> GatherOperator:
@@ -1611,7 +1628,7 @@ def plan_gather(ctx: RenderContext) -> GatherPlan | None:
                       _plan_constants())
 
 
-def gather_operator_of(plan: GatherPlan, executor=None) -> GatherOperator | None:
+def gather_operator_of(plan: GatherPlan, executor=None) -> GatherBlocks | None:
     """The operator of ``plan``'s rows, cast by ``executor.gather`` (threads or
     ``gather-…`` tasks) when given; None when it gathers no vertex."""
     if plan.context is None:
@@ -1619,7 +1636,7 @@ def gather_operator_of(plan: GatherPlan, executor=None) -> GatherOperator | None
     ranges = plan.ranges(executor)
     parts = (executor.gather(plan.context, ranges) if executor is not None
              else [gather_vertices(plan.context, a, b) for a, b in ranges])
-    return GatherOperator.concatenate(parts)
+    return GatherBlocks(parts)
 
 
 #: Junction vertices per range of a gather computed ahead (:func:`gather_ahead`): a range
@@ -1675,9 +1692,9 @@ class GatherAhead:
         """Wait until nothing more is computed ahead; whether that is so."""
         return self._handle.join(timeout)
 
-    def operator(self) -> GatherOperator | None:
+    def operator(self) -> GatherBlocks | None:
         parts = self._handle.result()
-        return GatherOperator.concatenate(parts) if parts else None
+        return GatherBlocks(parts) if parts else None
 
 
 def gather_ahead(scene: Scene, light: DirectLight, settings: Settings, cam: Camera,
@@ -1833,7 +1850,7 @@ def _gathered_vertices(ctx: RenderContext, j: Junctions, view: bool = False) -> 
 
 
 def _gather_change(ctx: RenderContext, j: Junctions, idx: np.ndarray,
-                   G: GatherOperator | None) -> np.ndarray:
+                   G: GatherBlocks | None) -> np.ndarray:
     """``(V, 3)``: the change of vertex radiance when the indirect light of the vertices
     ``idx`` (:func:`_gathered_vertices`) is gathered (:mod:`daskrad.kernels.gather`, the
     operator ``G`` of their rows, :func:`gather_operator_of`) instead of averaged from their

@@ -288,3 +288,23 @@ def test_a_plan_for_other_polygons_is_not_taken(solved):
         assert not ahead.plan().fits(other)
     finally:
         ex.close()
+
+
+def test_the_operator_in_blocks_gives_the_bits_of_one_operator_of_every_row(solved, rng):
+    # the render applies the tasks' blocks one after the other (render.GatherBlocks) instead
+    # of joining them: each row is summed in its stored order either way
+    scene, light, _, _ = solved
+    plan = render.plan_gather(render.geometry_context(scene, light, SMALL,
+                                                      render.camera(scene, SMALL)))
+    n = len(plan.vertices)
+    assert n > 20
+    whole = render.gather_vertices(plan.context, 0, n)
+    cuts = [0, 1, 7, n // 2, n]                   # a block of one row, and uneven ones
+    blocks = render.GatherBlocks([render.gather_vertices(plan.context, a, b)
+                                  for a, b in zip(cuts[:-1], cuts[1:], strict=True)])
+    radiance = rng.random((plan.context.n_vertices, 3))
+    np.testing.assert_array_equal(blocks.mean_radiance(radiance),
+                                  whole.mean_radiance(radiance))
+    np.testing.assert_array_equal(blocks.excluded, whole.excluded)
+    assert blocks.mean_radiance(radiance).shape == (n, 3)
+    assert render.GatherBlocks([]).mean_radiance(radiance).shape == (0, 3)
