@@ -156,10 +156,10 @@ def kernel_stamps() -> dict[str, list[int]]:
 def environment() -> dict:
     import numba
 
-    from daskrad.kernels import LEAF_REFCOUNTS
+    from daskrad.kernels import REFERENCE_ARMS
 
     return {"numba": numba.__version__, "python": sys.version.split()[0],
-            "stamps": kernel_stamps(), "leaf_refcounts": LEAF_REFCOUNTS}
+            "stamps": kernel_stamps(), **REFERENCE_ARMS}
 
 
 def _read_marker(directory: Path) -> dict | None:

@@ -569,6 +569,60 @@ def test_fan_gives_the_plain_walks_bits_and_skips_the_surface_below(rng, offset)
     assert (below > 0).all()
 
 
+def _marked_walk():
+    """A numba loop casting rays through one fan that is never aimed (nothing culled), so
+    only its marks (``Fan.tested``) change the walk, beside the plain walk (the last four
+    triangles remembered in registers) and the brute-force answers; the
+    fan's ray numbers start at their last value with every triangle marked with the first
+    number that follows, so the walk must clear the marks before it numbers a ray."""
+    from numba import njit
+
+    @njit
+    def walk(grid, o, d, tmax):
+        n = o.shape[0]
+        marked = np.empty((n, 4))
+        plain = np.empty((n, 4))
+        brute = np.empty((n, 4))
+        any_marked = np.empty(n, np.bool_)
+        any_plain = np.empty(n, np.bool_)
+        any_brute = np.empty(n, np.bool_)
+        fan = G.new_fan(grid)
+        fan.ray[0] = G.LAST_RAY
+        fan.tested[:] = 0            # what a fan that did not clear would take for tested
+        for i in range(n):
+            t, tri, u, v = G.closest_hit_fan(grid, fan, o[i], d[i], 0.0, np.inf)
+            marked[i, 0], marked[i, 1], marked[i, 2], marked[i, 3] = t, tri, u, v
+            t, tri, u, v = G.closest_hit_one(grid, o[i], d[i], 0.0, np.inf)
+            plain[i, 0], plain[i, 1], plain[i, 2], plain[i, 3] = t, tri, u, v
+            t, tri, u, v = G.closest_hit_brute_one(grid, o[i], d[i], 0.0, np.inf)
+            brute[i, 0], brute[i, 1], brute[i, 2], brute[i, 3] = t, tri, u, v
+            any_marked[i] = G.any_hit_fan(grid, fan, o[i], d[i], 0.0, tmax)
+            any_plain[i] = G.any_hit_one(grid, o[i], d[i], 0.0, tmax)
+            any_brute[i] = G.any_hit_brute_one(grid, o[i], d[i], 0.0, tmax)
+        return marked, plain, brute, any_marked, any_plain, any_brute, fan.ray[0]
+
+    return walk
+
+
+def test_a_fans_marks_give_the_brute_force_answers_where_big_triangles_span_many_cells(rng):
+    # big triangles in a fine grid: a ray meets each in cell after cell, and tests it once
+    # (its first answer stands: a miss stays a miss, a hit is the best or behind it)
+    tris = rng.uniform(0.0, 10.0, (300, 1, 3)) + rng.normal(0.0, 3.0, (300, 3, 3))
+    grid = G.build_grid(tris, density=64.0)
+    assert len(grid.cell_items) > 40 * len(tris)           # each in many cells
+    o = rng.uniform(0.0, 10.0, (2000, 3))
+    d = random_dirs(rng, 2000) * rng.uniform(0.5, 20.0, (2000, 1))
+    marked, plain, brute, any_marked, any_plain, any_brute, last = _marked_walk()(grid, o, d,
+                                                                                  0.3)
+    np.testing.assert_array_equal(marked, plain)          # t, tri, u, v: the same bits
+    np.testing.assert_array_equal(any_marked, any_plain)
+    np.testing.assert_array_equal(any_marked, any_brute)
+    hit = brute[:, 1] >= 0
+    np.testing.assert_allclose(marked[hit, 0], brute[hit, 0], rtol=T_RTOL)
+    assert 0.3 < hit.mean() and 0.05 < any_brute.mean() < 0.95
+    assert last == 2 * len(o) - 1        # the numbers started again from 0 after the last
+
+
 def _located_scene(elements=4):
     """The unit box (lit inside) with two squares back to back at ``z = 0.5`` (one facing up,
     one down, coincident) and a lone square at ``z = 0.25`` that no element covers: the

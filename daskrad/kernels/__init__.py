@@ -5,6 +5,13 @@ kernel is a plain function over arrays, tested alone, and called by thin in-proc
 wrappers elsewhere so both paths share one implementation.
 """
 
-from daskrad.kernels._jit import LEAF_REFCOUNTS, is_leaf, jit, jit_leaf, leaf_faults
+from daskrad.kernels._jit import (
+    LEAF_REFCOUNTS,
+    REFERENCE_ARMS,
+    is_leaf,
+    jit,
+    jit_leaf,
+    leaf_faults,
+)
 
-__all__ = ["LEAF_REFCOUNTS", "is_leaf", "leaf_faults", "jit", "jit_leaf"]
+__all__ = ["LEAF_REFCOUNTS", "REFERENCE_ARMS", "is_leaf", "leaf_faults", "jit", "jit_leaf"]

@@ -33,7 +33,8 @@ freed under it.
 
 ``DASKRAD_LEAF_REFCOUNTS=1`` compiles the leaves as counted kernels, for
 ``benchmarks/bench_leaves.py`` to compare the two; it needs a numba cache of its own
-(``NUMBA_CACHE_DIR``, else it is refused), as the cache's index does not tell them apart.
+(``NUMBA_CACHE_DIR``, else it is refused), as the cache's index does not tell them apart
+(:func:`reference_arm`).
 """
 
 import os
@@ -46,12 +47,31 @@ jit = njit(nogil=True, cache=True, _nrt=True)
 jit_parallel = njit(nogil=True, cache=True, parallel=True, _nrt=True)
 """Decorator for kernels that use ``numba.prange``; only for in-process hot loops."""
 
+
+
+def reference_arm(name: str) -> bool:
+    """Whether the environment variable ``name`` is ``1``: the kernels are compiled as the
+    reference arm of a benchmark (the code a change replaced). The setting is baked into the
+    compiled code and numba's cache index does not tell the two apart, so the arm needs a
+    cache of its own (``NUMBA_CACHE_DIR``, else it is refused); ``daskrad warmup`` records
+    the arms its cache was compiled with (:data:`REFERENCE_ARMS`)."""
+    on = os.environ.get(name, "") == "1"
+    if on and not os.environ.get("NUMBA_CACHE_DIR"):
+        raise RuntimeError(f"{name}=1 needs a numba cache of its own: set NUMBA_CACHE_DIR too")
+    return on
+
+
 #: Whether the leaves are compiled with numba's reference counts (``DASKRAD_LEAF_REFCOUNTS=1``,
 #: for the benchmark that compares the two).
-LEAF_REFCOUNTS = os.environ.get("DASKRAD_LEAF_REFCOUNTS", "") == "1"
-if LEAF_REFCOUNTS and not os.environ.get("NUMBA_CACHE_DIR"):
-    raise RuntimeError("DASKRAD_LEAF_REFCOUNTS=1 needs a numba cache of its own: set "
-                       "NUMBA_CACHE_DIR too")
+LEAF_REFCOUNTS = reference_arm("DASKRAD_LEAF_REFCOUNTS")
+
+#: Whether the grid's walk remembers only the last four triangles a ray tested, in registers,
+#: as before the fans' marks (``DASKRAD_WALK_REGISTERS=1``;
+#: :data:`daskrad.kernels.grid.WALK_MARKS`).
+WALK_REGISTERS = reference_arm("DASKRAD_WALK_REGISTERS")
+
+#: The reference arms in force (their names as :func:`reference_arm` reads them).
+REFERENCE_ARMS = {"leaf_refcounts": LEAF_REFCOUNTS, "walk_registers": WALK_REGISTERS}
 
 _leaf_compile = jit if LEAF_REFCOUNTS else njit(nogil=True, cache=True, _nrt=False)
 

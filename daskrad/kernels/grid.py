@@ -36,7 +36,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import prange
 
-from daskrad.kernels._jit import jit, jit_leaf, jit_parallel
+from daskrad.kernels._jit import WALK_REGISTERS, jit, jit_leaf, jit_parallel
 from daskrad.kernels.tolerances import (
     COORD_ROUND,
     FAN_MARGIN,
@@ -424,6 +424,10 @@ class Fan(NamedTuple):
         last shadow ray asked through it, or -1 (:func:`any_hit_cached`). It outlives
         :func:`aim_fan`: the next point (the next sample of a pixel, the next pixel of a
         tile) is most often hidden from the light by the same triangle.
+    tested : (T,) int32, ray : (1,) int32
+        The walk's mailbox: ``tested[t] == ray[0]`` when the current ray (each walk numbers
+        its ray, :func:`_next_ray`) has tested triangle ``t`` already, in an earlier cell.
+        Empty for :data:`NO_FAN`, whose walks remember the last four triangles instead.
     """
 
     stamp: np.ndarray
@@ -432,6 +436,14 @@ class Fan(NamedTuple):
     normal: np.ndarray
     margin: np.ndarray
     blocker: np.ndarray
+    tested: np.ndarray
+    ray: np.ndarray
+
+
+#: Whether a fan marks the triangles each of its rays tested (:attr:`Fan.tested`); False
+#: (``DASKRAD_WALK_REGISTERS=1``, ``benchmarks/bench_leaves.py --reference registers``) makes
+#: fans without marks, whose walks remember the last four triangles, as before.
+WALK_MARKS = not WALK_REGISTERS
 
 
 @jit
@@ -440,12 +452,32 @@ def new_fan(grid, slots=0):
     cache slots. It is scratch: one per thread, aimed (:func:`aim_fan`) at each origin in
     turn."""
     return Fan(np.full(grid.triangles.shape[0], -1, np.int32), np.full(1, -1, np.int32),
-               np.zeros(3), np.zeros(3), np.zeros(1), np.full(slots, -1, np.int64))
+               np.zeros(3), np.zeros(3), np.zeros(1), np.full(slots, -1, np.int64),
+               np.full(grid.triangles.shape[0] if WALK_MARKS else 0, -1, np.int32),
+               np.zeros(1, np.int32))
 
 
 #: A fan that culls nothing (``key`` -1): the plain walk of :func:`closest_hit_one`.
 NO_FAN = Fan(np.full(0, -1, np.int32), np.full(1, -1, np.int32), np.zeros(3), np.zeros(3),
-             np.zeros(1), np.full(0, -1, np.int64))
+             np.zeros(1), np.full(0, -1, np.int64), np.full(0, -1, np.int32),
+             np.zeros(1, np.int32))
+
+
+#: The last ray number a fan's mailbox takes before it is cleared (int32's largest).
+LAST_RAY = 2**31 - 1
+
+
+@jit_leaf
+def _next_ray(fan):
+    """Number the next ray walked with ``fan``'s mailbox (``fan.tested``), clearing the
+    mailbox when the numbers run out; returns the number."""
+    r = fan.ray[0]
+    if r >= LAST_RAY:
+        for t in range(fan.tested.shape[0]):
+            fan.tested[t] = -1
+        r = -1
+    fan.ray[0] = r + 1
+    return r + 1
 
 
 @jit_leaf
@@ -576,22 +608,32 @@ def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode, fan):
     tx = _next_t(ox, ix, i, oi, origin[0], cell[0])
     ty = _next_t(oy, iy, j, oj, origin[1], cell[1])
     tz = _next_t(oz, iz, k, ok, origin[2], cell[2])
-    # The last four triangles tested (a mailbox in registers): a triangle met again in a
-    # later cell is not tested again. Its answer could not change: a miss stays a miss (the
-    # range only shrinks), and a hit is the best so far or behind it. A large polygon lies in
-    # many cells: two thirds of the tests of graz's free shadow rays were repeats (35 tests
-    # and 78 cells a ray), and four remembered catch two thirds of those.
+    # A triangle met again in a later cell is not tested again. Its answer could not change:
+    # a miss stays a miss (the range only shrinks), and a hit is the best so far or behind
+    # it. A large polygon lies in many cells: two thirds of the tests of graz's free shadow
+    # rays were repeats (35 tests and 78 cells a ray). A fan's rays mark every triangle they
+    # test (fan.tested, numbered per ray); other walks remember the last four, in registers
+    # (they catch two thirds of the repeats; the marks catch all: RenderPark's classroom's
+    # free shadow rays test 40 triangles where the four left 63). A fan made for another
+    # grid (another triangle count) keeps the registers: its marks would index past them.
+    marked = fan.tested.shape[0] == tris.shape[0] and tris.shape[0] > 0   # a fan of this grid
+    ray = _next_ray(fan) if marked else 0
     r0 = r1 = r2 = r3 = -1
     while True:
         t_exit = min(tx, ty, tz)
         c = (k * ny + j) * nx + i
         for m in range(cell_start[c], cell_start[c + 1]):
             tri = cell_items[m]
-            if tri == r0 or tri == r1 or tri == r2 or tri == r3:
+            if marked:
+                if fan.tested[tri] == ray:
+                    continue
+                fan.tested[tri] = ray
+            elif tri == r0 or tri == r1 or tri == r2 or tri == r3:
                 continue
+            else:
+                r3, r2, r1, r0 = r2, r1, r0, tri
             if cull and _below(fan, tris, tri, key):
                 continue
-            r3, r2, r1, r0 = r2, r1, r0, tri
             hit, t, u, v = _intersect(tris, tri, ox, oy, oz, dx, dy, dz, tmin, best_t, eps)
             if hit:
                 if any_mode:
