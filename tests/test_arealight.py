@@ -19,9 +19,16 @@ from daskrad.kernels.arealight import (
     clip_polygon,
 )
 from daskrad.kernels.direct import irradiance_points
-from daskrad.kernels.faces import Faces, face_hides, face_proves, no_faces
+from daskrad.kernels.faces import (
+    UNION_RAYS,
+    Faces,
+    face_hides,
+    face_hides_fan,
+    face_proves,
+    no_faces,
+)
 from daskrad.kernels.geometry import orthonormal_basis
-from daskrad.kernels.grid import build_grid
+from daskrad.kernels.grid import build_grid, new_fan
 from daskrad.kernels.lambert import lambert_polygon
 from daskrad.mesh import build_hierarchy, hierarchy_triangles
 from daskrad.scene import box_scene, scene_from_arrays
@@ -290,6 +297,9 @@ def test_faces_hide_only_lights_no_ray_reaches():
         p = np.array([rng.uniform(-1, 1), 0.0, rng.uniform(-1, 1)])
         e = p + OFF * UP
         k = face_hides(grid, faces, *e, UP, LIGHT, 4, en, OFF, HZ)
+        # the vertex pass's rays mark the triangles they tested (a fan): the same answer
+        assert face_hides_fan(grid, faces, *e, UP, LIGHT, 4, en, OFF, HZ, -1, UNION_RAYS,
+                              new_fan(grid)) == k
         if k < 0:
             continue
         proved += 1

@@ -74,9 +74,9 @@ import numpy as np
 
 from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.direct import LIGHT_HIDDEN, LIGHT_VISIBLE
-from daskrad.kernels.faces import UNION_RAYS, face_hides
+from daskrad.kernels.faces import UNION_RAYS, face_hides_fan
 from daskrad.kernels.geometry import lex_less, orthonormal_basis
-from daskrad.kernels.grid import any_hit_one
+from daskrad.kernels.grid import any_hit_fan, new_fan
 from daskrad.kernels.hemisphere import (
     depth_coefficients,
     edge_capacity,
@@ -458,10 +458,11 @@ def _candidates(grid, ex, ey, ez, nx, ny, nz, count, planes, hz, off, stamp, sid
 
 
 @jit_leaf
-def _centroid_ray(grid, ex, ey, ez, corners, count, off, ray):
+def _centroid_ray(grid, ex, ey, ez, corners, count, off, ray, fan):
     """Visibility ``0.0``/``1.0`` of the light's centroid by one shadow ray from the eye: the
     fallback for a light too thin to hold a pixel centre of its own window. ``ray (2, 3)``:
-    scratch for the ray's origin and direction."""
+    scratch for the ray's origin and direction; ``fan``: :func:`area_irradiance_stats`'
+    (never aimed: it only marks the triangles the ray tested)."""
     o = ray[0]
     d = ray[1]
     o[0] = ex
@@ -475,7 +476,7 @@ def _centroid_ray(grid, ex, ey, ez, corners, count, off, ray):
     dl = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
     if not dl > 2.0 * off:
         return 1.0
-    return 0.0 if any_hit_one(grid, o, d, off / dl, 1.0 - off / dl) else 1.0
+    return 0.0 if any_hit_fan(grid, fan, o, d, off / dl, 1.0 - off / dl) else 1.0
 
 
 @jit_leaf
@@ -706,7 +707,7 @@ def _hinted(grid, hint, ex, ey, ez, n, count, planes, hz, off, stamp, sid, cand,
 def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_thr, tab,
                      planes, stamp, sid, cand, lx, ly, lz, ev, enrm, eoff, scr, qclip, xs, ys,
                      xcross, cnt, item, zbuf, mask, xc, yc, slabs, hint, hid, clip, poly,
-                     cpl, sc, ray, prune=True):
+                     cpl, sc, ray, fan, prune=True):
     """``(V, n_candidates)``: the visible fraction of one light from ``p`` (module docstring).
 
     ``corners (count, 3)`` is the light, ``en (3,)`` its unit emitting normal (``p`` must lie
@@ -820,7 +821,7 @@ def visible_fraction(grid, p, n, corners, count, en, off, hz, resolution, cos_th
             if status == 1:
                 return 1.0, found
             if status == 2:
-                return _centroid_ray(grid, ex, ey, ez, corners, count, off, ray), found
+                return _centroid_ray(grid, ex, ey, ez, corners, count, off, ray, fan), found
             ready = True
             # the occluders' clip, only for a pair that draws any (most have no candidate)
             clip_planes(ex, ey, ez, corners, count, WINDOW_CLIP_ANGLE, clip)
@@ -920,6 +921,7 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
     cpl = np.empty((6, 4))      # a candidate's half-spaces: 4 faces, light, horizon
     sc = np.empty((6, 10))      # ... a triangle clipped by 6 planes keeps at most 9 corners
     ray = np.empty((2, 3))      # the thin light's centroid ray
+    fan = new_fan(grid)         # never aimed: the rays' marks (each triangle tested once)
     lx = np.empty(8)
     ly = np.empty(8)
     lz = np.empty(8)
@@ -960,9 +962,9 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
             F = lambert_polygon(p[0], p[1], p[2], n[0], n[1], n[2], em_corners[m], cntm)
             if F <= 0.0:
                 continue
-            k = face_hides(grid, faces, p[0] + off * n[0], p[1] + off * n[1],
-                           p[2] + off * n[2], n, em_corners[m], cntm, en, off, hz,
-                           face_hint[m], union)
+            k = face_hides_fan(grid, faces, p[0] + off * n[0], p[1] + off * n[1],
+                               p[2] + off * n[2], n, em_corners[m], cntm, en, off, hz,
+                               face_hint[m], union, fan)
             if k >= 0:
                 if hint > 0:
                     face_hint[m] = k
@@ -973,7 +975,7 @@ def area_irradiance_stats(grid, faces, points, normals, off, hz, em_corners, em_
                                         cos_thr, tab, planes, stamp, sid, cand, lx, ly, lz,
                                         ev, enrm, eoff, scr, qclip, xs, ys, xcross, cnt, item,
                                         zbuf, mask, xc, yc, slabs, hints[m], hid, clip,
-                                        poly, cpl, sc, ray, prune)
+                                        poly, cpl, sc, ray, fan, prune)
             sid += 1
             if hint > 0 and vis == 0.0 and hid[hid.shape[0] - 1] > 0:
                 hints[m, :] = hid

@@ -30,7 +30,7 @@ import numpy as np
 
 from daskrad.kernels._jit import jit, jit_leaf
 from daskrad.kernels.geometry import within_edges
-from daskrad.kernels.grid import closest_hit_one
+from daskrad.kernels.grid import NO_FAN, closest_hit_fan
 
 
 class Faces(NamedTuple):
@@ -79,6 +79,14 @@ def _in_face(faces, f, x, y, z, nx, ny, nz, eps):
 @jit
 def face_hides(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, hint=-1,
                union=UNION_RAYS):
+    """:func:`face_hides_fan` with rays that remember the last four triangles they tested
+    (:data:`daskrad.kernels.grid.NO_FAN`): the same answer."""
+    return face_hides_fan(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, hint,
+                          union, NO_FAN)
+
+
+@jit
+def face_hides_fan(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, hint, union, fan):
     """The triangle of a convex face of the scene that hides the whole light from the eye
     ``e``, or -1 when none is found.
 
@@ -100,6 +108,10 @@ def face_hides(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, hint=-1,
     together (:func:`faces_hide`, ``union`` rays beyond the corners; 0: not tried); the
     first corner's triangle is then the answer (the hint the caller remembers). -1 whenever
     it cannot prove it; the caller then runs the window method.
+
+    ``fan``: scratch of :func:`daskrad.kernels.grid.new_fan` for ``grid``, never aimed (it
+    culls nothing): its rays test each triangle once, however many cells hold it (the same
+    answers).
     """
     if faces.corners.shape[0] == 0:
         return -1
@@ -118,7 +130,7 @@ def face_hides(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, hint=-1,
     d[0] = corners[0, 0] - ex
     d[1] = corners[0, 1] - ey
     d[2] = corners[0, 2] - ez
-    t, k, _, _ = closest_hit_one(grid, o, d, 0.0, 1.0)
+    t, k, _, _ = closest_hit_fan(grid, fan, o, d, 0.0, 1.0)
     if k < 0:
         return -1
     if face_proves(grid, faces, k, ex, ey, ez, n, corners, count, en, off, hz, t):
@@ -127,7 +139,7 @@ def face_hides(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, hint=-1,
     # sits at a junction with that face: the window method's rule, whose clipping decides)
     if (union > 0 and t * (n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) > hz
             and faces_hide(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, k,
-                           union)):
+                           union, fan)):
         return k
     return -1
 
@@ -206,7 +218,7 @@ def face_proves(grid, faces, k, ex, ey, ez, n, corners, count, en, off, hz, t0):
 
 
 @jit
-def faces_hide(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, k0, extra):
+def faces_hide(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, k0, extra, fan):
     """Whether several faces of the scene together hide the whole light from the eye ``e``:
     the faces of the grid's triangle ``k0`` (the first corner's hit), of the closest hits of
     the rays to the light's other corners, and of up to ``extra`` rays more, each to the
@@ -269,7 +281,7 @@ def faces_hide(grid, faces, ex, ey, ez, n, corners, count, en, off, hz, k0, extr
                     for z in range(cc[0]):
                         s += cur[0, z, x]
                     d[x] = s / cc[0] - o[x]
-            k = closest_hit_one(grid, o, d, 0.0, 1.0)[1]
+            k = closest_hit_fan(grid, fan, o, d, 0.0, 1.0)[1]
             if k < 0:
                 return False
         f = faces.tri_face[k]
