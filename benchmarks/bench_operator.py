@@ -83,6 +83,16 @@ def child(arm: str, store: str) -> dict:
             "digest": hashlib.sha256(out.vertex_radiance.tobytes()).hexdigest()}
 
 
+def _scene(store: Path) -> dict:
+    """The scene a store's run solved (its report beside it) and its element count."""
+    from daskrad.distributed.store import Result
+
+    report = Path(store).with_suffix(".json")
+    scene = json.loads(report.read_text()).get("scene") if report.is_file() else None
+    return {"scene": Path(scene).name if scene else None,
+            "elements": Result(store).attrs.get("n_elements")}
+
+
 def _run_arm(arm: str, store: Path) -> dict:
     done = subprocess.run([sys.executable, "-m", "benchmarks.bench_operator", "--child", arm,
                            str(store)], env=process_env(), check=True, capture_output=True,
@@ -120,11 +130,11 @@ def main(argv: list[str] | None = None) -> dict:
                     runs[arm].append(r)
             rows = medians(runs, COLUMNS)
             same = len(digests) == 1
-            print(f"\n{store}: for_view, medians of {args.passes} passes (ABBA), "
+            print(f"\n{store} ({_scene(store)}): for_view, medians of {args.passes} passes (ABBA), "
                   f"{'the same bits' if same else 'DIFFERENT BITS'}")
             print_table(rows, COLUMNS, "blocks / joined", label=16, width=12)
-            out.append({"store": str(store), "passes": args.passes, "same": same,
-                        "rows": rows})
+            out.append({"store": str(store), **_scene(store), "passes": args.passes,
+                        "same": same, "rows": rows})
             if not same:
                 raise AssertionError(f"{store}: the arms' vertex radiance differs")
     RESULTS.mkdir(exist_ok=True)

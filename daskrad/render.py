@@ -1397,11 +1397,10 @@ class GatherBlocks:
     """The gather's operator as the row blocks its tasks computed (:class:`GatherOperator`
     each), one after the other: what one operator of all their rows gives, without copying
     them into one. A view's operator holds ~600 nonzeros a vertex (RenderPark's classroom:
-    15,477 junction vertices, 9.9 million nonzeros, 160 MB), and joining its blocks took
-    more time than applying them three times (:func:`_gather_change`) and as much memory
-    again (``benchmarks/bench_operator.py``, ``for_view`` in fresh processes, medians of 4:
-    the classroom 5.00 → 4.66 s and a peak of 544 → 389 MiB; the 73k box 0.72 → 0.71 s,
-    325 → 280 MiB; the same bits).
+    15,477 junction vertices, 9.9 million nonzeros, 160 MB), and the joined copy cost the
+    render time and as much memory again (``benchmarks/bench_operator.py``, ``for_view`` in
+    fresh processes, medians of 4: the classroom 5.55 → 5.27 s and a peak of 537 → 389 MiB;
+    the 73k box 0.85 → 0.84 s, 329 → 288 MiB; the same bits).
 
     excluded : (n, 3) float64
         The blocks' :attr:`GatherOperator.excluded`, in order.

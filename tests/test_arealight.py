@@ -274,6 +274,7 @@ def test_faces_hide_only_lights_no_ray_reaches():
     from daskrad.kernels.grid import any_hit
 
     rng = np.random.default_rng(7)
+    others = np.random.default_rng(11)          # more points per scene, for the fan's marks
     en = np.array([0.0, -1.0, 0.0])
     u = (np.arange(48) + 0.5) / 48
     uu, vv = (a.ravel() for a in np.meshgrid(u, u))
@@ -297,9 +298,13 @@ def test_faces_hide_only_lights_no_ray_reaches():
         p = np.array([rng.uniform(-1, 1), 0.0, rng.uniform(-1, 1)])
         e = p + OFF * UP
         k = face_hides(grid, faces, *e, UP, LIGHT, 4, en, OFF, HZ)
-        # the vertex pass's rays mark the triangles they tested (a fan): the same answer
-        assert face_hides_fan(grid, faces, *e, UP, LIGHT, 4, en, OFF, HZ, -1, UNION_RAYS,
-                              new_fan(grid)) == k
+        # the vertex pass's rays mark the triangles they tested, one fan for every point and
+        # light (its marks numbered on from ray to ray): the same answers
+        fan = new_fan(grid)
+        for x, z in [e[[0, 2]], *others.uniform(-1, 1, (3, 2)), e[[0, 2]]]:
+            f = np.array([x, e[1], z])
+            assert face_hides_fan(grid, faces, *f, UP, LIGHT, 4, en, OFF, HZ, -1, UNION_RAYS,
+                                  fan) == face_hides(grid, faces, *f, UP, LIGHT, 4, en, OFF, HZ)
         if k < 0:
             continue
         proved += 1

@@ -459,10 +459,15 @@ def test_huge_diagonal_triangle_registers_a_sheet_not_the_whole_box():
 # Fans: many rays from one origin, the surface's own triangles decided once.
 
 
-def _fan_walk(shift=0.0, tmin=0.0):
+def _fan_walk(shift=0.0, tmin=0.0, marks=True):
     """A numba loop casting each fan's rays with and without it; the fan is aimed at the
-    origin, the rays leave from the origin moved ``shift`` along the normal, from ``tmin``."""
+    origin, the rays leave from the origin moved ``shift`` along the normal, from ``tmin``.
+    ``marks`` False: a fan without marks (``Fan.tested`` empty, as ``WALK_MARKS`` False makes
+    them), whose walk remembers the last four triangles it tested, culled ones not taking a
+    place."""
     from numba import njit
+
+    n_marks = -1 if marks else 0
 
     @njit
     def walk(grid, origins, normals, dirs, tmax, primed):
@@ -477,7 +482,10 @@ def _fan_walk(shift=0.0, tmin=0.0):
         any_fanned = np.empty((n, k), np.bool_)
         any_cached = np.empty((n, k), np.bool_)
         below = np.zeros(n, np.int64)
-        fan = G.new_fan(grid, 2)
+        made = G.new_fan(grid, 2)
+        marks = made.tested if n_marks < 0 else np.full(0, -1, np.int32)
+        fan = G.Fan(made.stamp, made.key, made.origin, made.normal, made.margin, made.blocker,
+                    marks, made.ray)
         fan.blocker[:] = primed
         for i in range(n):
             G.aim_fan(fan, grid, origins[i], normals[i], 1e-7)
@@ -498,8 +506,9 @@ def _fan_walk(shift=0.0, tmin=0.0):
     return walk
 
 
+@pytest.mark.parametrize("marks", [True, False], ids=["marks", "registers"])
 @pytest.mark.parametrize("offset", [0.0, 3e3])
-def test_fan_gives_the_plain_walks_bits_and_skips_the_surface_below(rng, offset):
+def test_fan_gives_the_plain_walks_bits_and_skips_the_surface_below(rng, offset, marks):
     # Origins a ray offset above a height field (at lattice vertices, where 6 triangles meet,
     # and at random points), rays into the upper hemisphere, some grazing it, plus a soup of
     # small triangles just above, across and just below the tangent planes: the fan must find
@@ -542,22 +551,22 @@ def test_fan_gives_the_plain_walks_bits_and_skips_the_surface_below(rng, offset)
     # the blocker cache starts from a field triangle under the first fan (culled) and a
     # soup triangle (most often missed); then each slot holds its last ray's blocker
     primed = np.array([int(tri[0]), len(field)], np.int64)
-    plain, fanned, any_plain, any_fanned, below, any_cached = _fan_walk()(grid, o, nrm, d, 2.0,
-                                                                          primed)
+    plain, fanned, any_plain, any_fanned, below, any_cached = _fan_walk(marks=marks)(
+        grid, o, nrm, d, 2.0, primed)
     np.testing.assert_array_equal(fanned, plain)          # t, tri, u, v: the same bits
     np.testing.assert_array_equal(any_fanned, any_plain)
     np.testing.assert_array_equal(any_cached, any_plain)
     # rays the cull does not hold for walk plainly: from another origin than the fan's (a
     # hair below it), going down, or with tmin < 0
-    shifted = _fan_walk(shift=-2e-7 * diag)(grid, o, nrm, d, 2.0, primed)
+    shifted = _fan_walk(shift=-2e-7 * diag, marks=marks)(grid, o, nrm, d, 2.0, primed)
     np.testing.assert_array_equal(shifted[1], shifted[0])
     np.testing.assert_array_equal(shifted[3], shifted[2])
     np.testing.assert_array_equal(shifted[5], shifted[2])
-    down = _fan_walk()(grid, o, nrm, -d, 2.0, primed)
+    down = _fan_walk(marks=marks)(grid, o, nrm, -d, 2.0, primed)
     np.testing.assert_array_equal(down[1], down[0])
     np.testing.assert_array_equal(down[5], down[2])
     assert (down[0][..., 1] >= 0).any()
-    behind = _fan_walk(tmin=-1.0)(grid, o, nrm, d, 2.0, primed)
+    behind = _fan_walk(tmin=-1.0, marks=marks)(grid, o, nrm, d, 2.0, primed)
     np.testing.assert_array_equal(behind[1], behind[0])
     np.testing.assert_array_equal(behind[3], behind[2])
     np.testing.assert_array_equal(behind[5], behind[2])

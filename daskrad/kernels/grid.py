@@ -427,7 +427,9 @@ class Fan(NamedTuple):
     tested : (T,) int32, ray : (1,) int32
         The walk's mailbox: ``tested[t] == ray[0]`` when the current ray (each walk numbers
         its ray, :func:`_next_ray`) has tested triangle ``t`` already, in an earlier cell.
-        Empty for :data:`NO_FAN`, whose walks remember the last four triangles instead.
+        Empty for :data:`NO_FAN` (and every fan when :data:`WALK_MARKS` is False), whose
+        walks remember the last four triangles instead. A fan walks only the grid it was made
+        for: its ``stamp`` and ``tested`` are indexed by that grid's triangles.
     """
 
     stamp: np.ndarray
@@ -575,8 +577,10 @@ def _culls(fan, ox, oy, oz, dx, dy, dz, tmin):
 def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode, fan):
     """Walk the grid: closest hit ``(t, tri, u, v)``, or the first hit found if ``any_mode``.
 
-    ``fan``: a :class:`Fan` whose triangles wholly below its plane are skipped (when the ray
-    rises above that plane), or :data:`NO_FAN`."""
+    ``fan``: a :class:`Fan` of this grid, whose triangles wholly below its plane are skipped
+    (when the ray rises above that plane) and whose marks keep the ray from testing a
+    triangle twice (:attr:`Fan.tested`), or :data:`NO_FAN`. No triangle is tested twice in
+    a row of four either way; the answer is the same bits with or without a fan."""
     miss = (np.inf, -1, 0.0, 0.0)
     if not (np.isfinite(ox) and np.isfinite(oy) and np.isfinite(oz) and np.isfinite(dx)
             and np.isfinite(dy) and np.isfinite(dz)):
@@ -614,9 +618,10 @@ def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode, fan):
     # rays were repeats (35 tests and 78 cells a ray). A fan's rays mark every triangle they
     # test (fan.tested, numbered per ray); other walks remember the last four, in registers
     # (they catch two thirds of the repeats; the marks catch all: RenderPark's classroom's
-    # free shadow rays test 40 triangles where the four left 63). A fan made for another
-    # grid (another triangle count) keeps the registers: its marks would index past them.
-    marked = fan.tested.shape[0] == tris.shape[0] and tris.shape[0] > 0   # a fan of this grid
+    # free shadow rays test 40 triangles where the four left 63). A fan belongs to the grid
+    # it was made for (its stamp and marks are indexed by that grid's triangles); the size
+    # test only keeps a fan without marks (NO_FAN, WALK_MARKS False) on the registers.
+    marked = fan.tested.shape[0] == tris.shape[0] and tris.shape[0] > 0
     ray = _next_ray(fan) if marked else 0
     r0 = r1 = r2 = r3 = -1
     while True:
@@ -630,10 +635,10 @@ def _walk(grid, ox, oy, oz, dx, dy, dz, tmin, tmax, any_mode, fan):
                 fan.tested[tri] = ray
             elif tri == r0 or tri == r1 or tri == r2 or tri == r3:
                 continue
-            else:
-                r3, r2, r1, r0 = r2, r1, r0, tri
             if cull and _below(fan, tris, tri, key):
                 continue
+            if not marked:            # a culled triangle takes no register (as before marks)
+                r3, r2, r1, r0 = r2, r1, r0, tri
             hit, t, u, v = _intersect(tris, tri, ox, oy, oz, dx, dy, dz, tmin, best_t, eps)
             if hit:
                 if any_mode:
