@@ -48,7 +48,6 @@ jit_parallel = njit(nogil=True, cache=True, parallel=True, _nrt=True)
 """Decorator for kernels that use ``numba.prange``; only for in-process hot loops."""
 
 
-
 def reference_arm(name: str) -> bool:
     """Whether the environment variable ``name`` is ``1``: the kernels are compiled as the
     reference arm of a benchmark (the code a change replaced). The setting is baked into the
