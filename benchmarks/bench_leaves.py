@@ -65,7 +65,7 @@ def _env(reference: str, arm: str) -> dict:
     env = process_env()
     for _, _, variable, _ in REFERENCES.values():
         env.pop(variable, None)
-    shipped, ref, variable, _ = REFERENCES[reference]
+    _, ref, variable, _ = REFERENCES[reference]
     if arm == ref:
         env.update({variable: "1", "NUMBA_CACHE_DIR": str(_cache(reference))})
     return env

@@ -11,8 +11,9 @@ CPU on the 2-core development machine), far more than a warm run of the Cornell 
 - it checks the leaves' contract on everything it compiled (:func:`leaf_violations`,
   :mod:`daskrad.kernels._jit`), and drops the cache and fails when a kernel breaks it;
 - it then writes a marker (:data:`MARKER`) beside the cache naming the kernel sources' stamps
-  (mtime and size, what numba's own cache checks, and whether the leaves were compiled
-  counted) and the cache index files it found;
+  (mtime and size, what numba's own cache checks, and the benchmarks' reference arms the
+  kernels were compiled as, :data:`daskrad.kernels.REFERENCE_ARMS`) and the cache index files
+  it found;
 - :func:`is_warm` reads the marker back: cheap (one ``listdir`` and a ``stat`` per kernel
   file), it tells the command line whether a run would compile, so it can say so in one line
   on stderr (:func:`announce`) instead of sitting at 0 % for half a minute.
