@@ -11,12 +11,21 @@ two arms ``--repeat`` times; medians of the seconds per kind of array.
 
 ``python -m benchmarks.bench_store [--scene PATH] [--element-size S] [--repeat N]``; writes
 ``benchmarks/results/store.json``.
+
+``--blobs``: the task contexts of that run's store (its render context and step 2's state)
+written again by :meth:`~daskrad.distributed.store.Store.put_context`, each chunk filled from
+the context's arrays (:data:`daskrad.distributed.store.STREAM_BLOBS`) against the arrays joined
+into one blob first, as a run writes them: each pass in a fresh process (a run writes a
+context once, into pages it has not touched yet), the arms alternated ABBA; seconds and the
+rise of the process's peak resident memory (``VmHWM``) while it writes, medians. Writes
+``benchmarks/results/store_blobs.json``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import subprocess
 import sys
 import tempfile
 import time
@@ -25,7 +34,7 @@ from pathlib import Path
 import numpy as np
 import zarr
 
-from benchmarks.arms import medians, print_table
+from benchmarks.arms import medians, print_table, process_env
 from daskrad.distributed import store as st
 from daskrad.run import run
 from daskrad.settings import Settings
@@ -33,6 +42,7 @@ from daskrad.settings import Settings
 RESULTS = Path(__file__).parent / "results"
 CORNELL = Path(__file__).parent.parent / "scenes" / "cornell_box.obj"
 ARMS = {"every chunk": True, "zarr default": False}
+BLOB_ARMS = {"chunk by chunk": True, "joined": False}
 
 
 def _kind(name: str) -> str:
@@ -63,13 +73,80 @@ def write_all(arrays: dict, path: Path) -> dict[str, float]:
     return seconds
 
 
+def _peak_mib() -> float:
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith("VmHWM")) / 1024
+
+
+def put_contexts(store: Path, streamed: bool) -> dict[str, float]:
+    """Every task context of ``store`` read back, then written into a scratch store beside it
+    with :data:`~daskrad.distributed.store.STREAM_BLOBS` set to ``streamed``: seconds per
+    context, ``all``, and ``peak MiB``, how far the peak resident memory rose meanwhile."""
+    contexts = {kind: st.load_context(str(store), kind) for kind, _ in
+                zarr.open_group(store, mode="r")["internal/context"].members()}
+    st.STREAM_BLOBS = streamed
+    scratch = st.Store(store.with_name(f"scratch-{streamed}.zarr"))
+    scratch.group = zarr.open_group(scratch.path, mode="w")
+    seconds: dict[str, float] = {}
+    before = _peak_mib()
+    for kind, ctx in sorted(contexts.items()):
+        t = time.perf_counter()
+        scratch.put_context(kind, ctx)
+        seconds[kind] = time.perf_counter() - t
+    seconds["all"] = sum(seconds.values())
+    seconds["peak MiB"] = _peak_mib() - before
+    return seconds
+
+
+def blobs(args, tmp: Path) -> dict:
+    out = tmp / "run.exr"
+    report = run(args.scene, out, Settings(workers=0, element_size=args.element_size,
+                                           max_iterations=64), progress=False)
+    store = out.with_suffix(".zarr")
+    megabytes = {kind: g["blob"].nbytes / 2**20 for kind, g in
+                 zarr.open_group(store, mode="r")["internal/context"].members()}
+    runs: dict[str, list[dict]] = {arm: [] for arm in BLOB_ARMS}
+    for k in range(args.repeat):
+        order = list(BLOB_ARMS.items())
+        for arm, streamed in (order if k % 2 == 0 else order[::-1]):
+            done = subprocess.run(
+                [sys.executable, "-m", "benchmarks.bench_store", "--put", str(store),
+                 "--streamed", str(int(streamed))], env=process_env(), check=True,
+                capture_output=True, text=True)
+            runs[arm].append(json.loads(done.stdout.strip().splitlines()[-1]))
+    columns = list(runs[next(iter(BLOB_ARMS))][0])
+    rows = medians(runs, columns)
+    print(f"\n{args.scene.name}, {report['counts']['elements']:,} elements: its task contexts ("
+          + ", ".join(f"{k} {v:.1f} MiB" for k, v in sorted(megabytes.items()))
+          + f") written again in fresh processes; seconds and peak MiB, medians of "
+          f"{args.repeat} passes, ABBA")
+    print_table(rows, columns, label=16, width=14, digits=4)
+    result = {"scene": str(args.scene), "element_size": args.element_size,
+              "elements": report["counts"]["elements"], "blob_mebibytes": megabytes,
+              "repeat": args.repeat, "rows": rows}
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "store_blobs.json").write_text(json.dumps(result, indent=1))
+    return result
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(prog="bench_store", description=__doc__.split("\n")[0])
     parser.add_argument("--scene", type=Path, default=CORNELL)
     parser.add_argument("--element-size", type=float, default=7.0)
     parser.add_argument("--repeat", type=int, default=7)
+    parser.add_argument("--blobs", action="store_true",
+                        help="the task contexts' blobs, chunk by chunk against joined")
+    parser.add_argument("--put", type=Path, help=argparse.SUPPRESS)   # one --blobs pass
+    parser.add_argument("--streamed", type=int, default=1, help=argparse.SUPPRESS)
     args = parser.parse_args(argv if argv is not None else sys.argv[1:] if
                              __name__ == "__main__" else [])
+    if args.put is not None:
+        seconds = put_contexts(args.put, bool(args.streamed))
+        print(json.dumps(seconds))
+        return seconds
+    if args.blobs:
+        with tempfile.TemporaryDirectory(prefix="daskrad-store-") as tmp:
+            return blobs(args, Path(tmp))
     before = st.WRITE_EMPTY_CHUNKS
     runs: dict[str, list[dict]] = {arm: [] for arm in ARMS}
     with tempfile.TemporaryDirectory(prefix="daskrad-store-") as tmp:

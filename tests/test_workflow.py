@@ -502,6 +502,61 @@ def test_xarray_opens_the_store(straight):
     assert float(mats["emission"].values.max()) == 17.0
 
 
+@pytest.mark.parametrize("chunk", [1 << 30, 4096, 100])
+def test_a_context_blob_written_chunk_by_chunk_is_the_joined_one(straight, tmp_path,
+                                                                  monkeypatch, chunk):
+    """The render context written as the store writes it (each chunk filled from the arrays,
+    :func:`write_blob`) and joined into one array first (the benchmark's reference arm): the
+    same blob, bit for bit, and the same attributes, its sha256 that of its bytes, whether
+    the arrays lie within a chunk or across many (100 bytes: most arrays span several)."""
+    import zarr
+
+    from daskrad.distributed import store as st
+
+    ctx = st.Result(straight.with_suffix(".zarr")).render_context()
+    monkeypatch.setattr(st, "BLOB_CHUNK", chunk)
+    written = {}
+    for streamed in (True, False):
+        monkeypatch.setattr(st, "STREAM_BLOBS", streamed)
+        path = tmp_path / f"streamed{streamed}.zarr"
+        store = st.Store(path)
+        store.group = zarr.open_group(str(path), mode="w")
+        token = store.put_context("render", ctx)
+        g = zarr.open_group(str(path), mode="r")["internal/context/render"]
+        blob = g["blob"]
+        assert blob.chunks == (min(chunk, blob.shape[0]),)
+        written[streamed] = (token, blob[...], dict(blob.attrs), dict(g.attrs))
+        assert blob.attrs["sha256"] == st.sha256(blob[...])
+        back = st.load_context(str(path), "render", token)
+        np.testing.assert_array_equal(back.tri_verts, ctx.tri_verts)
+        np.testing.assert_array_equal(back.vertex_radiance, ctx.vertex_radiance)
+    (t1, b1, a1, g1), (t0, b0, a0, g0) = written[True], written[False]
+    assert t1 == t0 and a1 == a0 and g1 == g0
+    assert b1.dtype == b0.dtype == np.uint8
+    np.testing.assert_array_equal(b1, b0)
+    assert b1.shape[0] > 100 * 100        # the 100-byte chunks are many
+
+
+@pytest.mark.parametrize("chunk", [7, 16, 100])
+def test_a_blob_with_zeros_before_between_and_after_its_parts(tmp_path, rng, chunk):
+    import zarr
+
+    from daskrad.distributed import store as st
+
+    a = rng.integers(1, 255, 13, dtype=np.uint8)
+    b = rng.integers(1, 255, 21, dtype=np.uint8)
+    joined = np.zeros(70, np.uint8)
+    joined[5:18], joined[40:61] = a, b
+    g = zarr.open_group(str(tmp_path / "b.zarr"), mode="w")
+    st.write_blob(g, "streamed", [(5, a), (40, b)], 70, chunk=chunk, description="d")
+    st.write_array(g, "joined", joined, compress=False, dims=("byte",), chunks=(chunk,),
+                   description="d")
+    np.testing.assert_array_equal(g["streamed"][...], joined)
+    assert dict(g["streamed"].attrs) == dict(g["joined"].attrs)
+    assert g["streamed"].attrs["sha256"] == st.sha256(joined)
+    assert g["streamed"].chunks == (chunk,) and g["streamed"].metadata.dimension_names == (
+        "byte",)
+
 # --- 5. feedback ---------------------------------------------------------------------------------
 
 def test_the_report_names_sizes_versions_camera_store_and_every_warning(tmp_path, capsys):

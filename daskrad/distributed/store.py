@@ -83,6 +83,10 @@ READS = (FORMAT, "daskrad-solution/6", "daskrad-solution/5", "daskrad-solution/4
 #: ``BLOB_ALIGN``-byte offsets, so the arrays read back are aligned views of the blob.
 BLOB_CHUNK = 8 << 20
 BLOB_ALIGN = 64
+#: Whether a blob is written chunk by chunk from its arrays (:func:`write_blob`); False joins
+#: them into one array first, as before: ``benchmarks/bench_store.py --blobs``' reference arm
+#: (a benchmark's switch; the bytes written are the same).
+STREAM_BLOBS = True
 
 #: Rows per chunk of the per-element arrays: ~1.5 MB of (E, 3) float64, big enough that a
 #: checkpoint of 100k elements writes a handful of files, small enough for partial reads.
@@ -153,9 +157,14 @@ def _chunks(shape: tuple) -> tuple:
 def sha256(a: np.ndarray) -> str:
     """Hex sha256 of an array's dtype, shape and bytes (C order)."""
     a = np.ascontiguousarray(a)
-    d = hashlib.sha256(f"{a.dtype.str}{a.shape}".encode())
+    d = _sha256_of(a.dtype, a.shape)
     d.update(a.reshape(-1).view(np.uint8))
     return d.hexdigest()
+
+
+def _sha256_of(dtype: np.dtype, shape: tuple):
+    """The sha256 of :func:`sha256` before any byte: its header names the dtype and shape."""
+    return hashlib.sha256(f"{np.dtype(dtype).str}{tuple(shape)}".encode())
 
 
 #: Whether a chunk holding only the fill value is written (:func:`write_array`); False is zarr's
@@ -168,25 +177,66 @@ def write_array(group, name: str, data: np.ndarray, dtype=None, compress: bool =
                 chunks: tuple | None = None) -> None:
     """Write ``data`` as array ``name`` of the zarr ``group`` (replacing it), ``dtype`` if
     given, with its dimension names, units, description and the sha256 of what was written:
-    every array of the store is written here (public, checkpoint slots, context blobs)."""
+    every array of the store is written here (public, checkpoint slots) or by
+    :func:`write_blob` (context blobs), which gives the same array."""
     data = np.ascontiguousarray(data, dtype=dtype)
+    arr = _create(group, name, data.shape, data.dtype, sha256(data), compress, dims, units,
+                  description, chunks or _chunks(data.shape))
+    if data.size:
+        arr[...] = data
+
+
+def write_blob(group, name: str, parts: list[tuple[int, np.ndarray]], size: int, *,
+               chunk: int, description: str = "") -> None:
+    """Write the ``(size,) uint8`` array whose bytes are ``parts`` (``(offset, (n,) uint8)``
+    in increasing offset order, not overlapping; zeros between them) as :func:`write_array`
+    writes that array joined (uncompressed, chunks of ``chunk`` bytes, dimension ``byte``):
+    the same bytes and attributes, its sha256 taken part by part, each chunk filled in one
+    buffer and written whole. The joined array is never made: for the 73k-element Cornell
+    box's render context that was a copy of 34 MB into pages touched for the first time
+    (``benchmarks/bench_store.py --blobs``)."""
+    digest = _sha256_of(np.uint8, (size,))
+    end = 0
+    for offset, part in parts:
+        digest.update(bytes(offset - end))
+        digest.update(part)
+        end = offset + len(part)
+    digest.update(bytes(size - end))
+    arr = _create(group, name, (size,), np.dtype(np.uint8), digest.hexdigest(), False,
+                  ("byte",), "1", description, (chunk,))
+    buf = np.empty(min(chunk, size), np.uint8)
+    first = 0                       # the first part that may reach into this chunk
+    for start in range(0, size, chunk):
+        stop = min(start + chunk, size)
+        out = buf[:stop - start]
+        out[:] = 0
+        while first < len(parts) and parts[first][0] + len(parts[first][1]) <= start:
+            first += 1
+        for offset, part in parts[first:]:
+            if offset >= stop:
+                break
+            lo, hi = max(offset, start), min(offset + len(part), stop)
+            out[lo - start:hi - start] = part[lo - offset:hi - offset]
+        arr[start:stop] = out
+
+
+def _create(group, name: str, shape: tuple, dtype: np.dtype, digest: str, compress: bool,
+            dims: tuple | None, units: str, description: str, chunks: tuple):
+    """Array ``name`` of ``group`` made anew (a parent path's groups too), not yet written."""
     *parents, name = name.split("/")
     for parent in parents:
         group = group.require_group(parent)
-    dims = tuple(dims) if dims is not None else tuple(f"{name}_{i}" for i in range(data.ndim))
+    dims = tuple(dims) if dims is not None else tuple(f"{name}_{i}" for i in range(len(shape)))
     # every chunk is written, even one that holds only the fill value: zarr's default skips
     # those, and its test compares each chunk with a full array of the fill value first, which
     # was most of an uncompressed write (benchmarks/bench_store.py: the 73k box's context
     # blobs 0.38×, its checkpoint slots 0.83×)
-    arr = group.create_array(name, shape=data.shape, dtype=data.dtype,
-                             chunks=chunks or _chunks(data.shape), overwrite=True,
-                             dimension_names=dims,
-                             attributes={"units": units, "description": description,
-                                         "sha256": sha256(data)},
-                             config={"write_empty_chunks": WRITE_EMPTY_CHUNKS},
-                             **({} if compress else {"compressors": None}))
-    if data.size:
-        arr[...] = data
+    return group.create_array(name, shape=shape, dtype=dtype, chunks=chunks, overwrite=True,
+                              dimension_names=dims,
+                              attributes={"units": units, "description": description,
+                                          "sha256": digest},
+                              config={"write_empty_chunks": WRITE_EMPTY_CHUNKS},
+                              **({} if compress else {"compressors": None}))
 
 
 def _public(group, name: str, data: np.ndarray, dtype=None) -> None:
@@ -797,19 +847,32 @@ class Store:
         layout, parts, offset = {}, [], 0
         for name in sorted(arrays):
             a = np.ascontiguousarray(arrays[name])
-            pad = -offset % BLOB_ALIGN
-            if pad:
-                parts.append(np.zeros(pad, np.uint8))
-                offset += pad
+            offset += -offset % BLOB_ALIGN
             layout[name] = {"dtype": a.dtype.str, "shape": list(a.shape), "offset": offset}
-            parts.append(a.reshape(-1).view(np.uint8))
+            parts.append((offset, a.reshape(-1).view(np.uint8)))
             offset += a.nbytes
-        blob = np.concatenate(parts) if parts else np.zeros(0, np.uint8)
-        write_array(g, "blob", blob, compress=False, dims=("byte",),
-                    chunks=(max(1, min(len(blob), BLOB_CHUNK)),),
-                    description=f"task context {kind}: its arrays, packed (the group's layout)")
+        chunk = max(1, min(offset, BLOB_CHUNK))
+        about = f"task context {kind}: its arrays, packed (the group's layout)"
+        if STREAM_BLOBS:
+            write_blob(g, "blob", parts, offset, chunk=chunk, description=about)
+        else:
+            write_array(g, "blob", _joined(parts, offset), compress=False, dims=("byte",),
+                        chunks=(chunk,), description=about)
         g.attrs.put({"meta": meta, "digests": digests, "layout": layout, "token": token})
         return token
+
+
+def _joined(parts: list[tuple[int, np.ndarray]], size: int) -> np.ndarray:
+    """The blob of :func:`write_blob`'s ``parts`` as one array (:data:`STREAM_BLOBS` off)."""
+    pieces, end = [], 0
+    for offset, part in parts:
+        if offset > end:
+            pieces.append(np.zeros(offset - end, np.uint8))
+        pieces.append(part)
+        end = offset + len(part)
+    if size > end:
+        pieces.append(np.zeros(size - end, np.uint8))
+    return np.concatenate(pieces) if pieces else np.zeros(0, np.uint8)
 
 
 def _looser(a: dict, tol: float, maxit: int) -> bool:
