@@ -29,9 +29,9 @@ $(NUMBA_STAMP): $(KERNELS) $(STAMP)
 	find daskrad -name '*.nbi' -delete -o -name '*.nbc' -delete
 	touch $@
 
-# Compile every numba kernel into its on-disk cache once (daskrad warmup: ~70 s here), so the
-# first run after an install or a kernel edit is not a silent compile; it runs again after
-# $(NUMBA_STAMP) dropped the cache.
+# Compile every numba kernel into its on-disk cache once (daskrad warmup: 100-120 s on a
+# 2-core machine), so the first run after an install or a kernel edit is not a silent
+# compile; it runs again after $(NUMBA_STAMP) dropped the cache.
 WARM_STAMP := $(VENV)/.warm
 $(WARM_STAMP): $(NUMBA_STAMP)
 	$(BIN)/daskrad warmup

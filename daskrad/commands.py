@@ -49,10 +49,10 @@ def resume_hint(output: str) -> str:
 
 
 def run_command(args) -> None:
+    settings = settings_from_args(args).validate()   # a bad option before the heavy imports
     from daskrad import warmup
     from daskrad.run import run
 
-    settings = settings_from_args(args)
     output = args.output or str(Path(args.scene).with_suffix(".exr").name)
     try:        # a Ctrl-C from here on says what it leaves, even before the run starts
         if not warmup.is_warm():

@@ -41,9 +41,11 @@ def run(scene_path: str | Path, out: str | Path, settings: Settings, progress: b
     ``executor``: run on this one instead of the settings' choice; ``camera``: the glTF camera
     to look through.
     Returns the run report (also written as JSON)."""
-    outputs = output.Outputs.of(out, resume)
+    # the options first, the scheduler's address next: nothing is touched yet (the outputs'
+    # check probes their folder with a file of its own)
     settings.validate()
     check_scheduler(settings)
+    outputs = output.Outputs.of(out, resume)
     beat = Heartbeat(progress)      # a log hears a line every 30 s of a long run
     try:
         with outputs.lock():

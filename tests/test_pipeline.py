@@ -152,12 +152,16 @@ def test_bad_option_fails_at_once_and_leaves_earlier_outputs(earlier, tmp_path, 
     # validated before the scene is loaded and before the old store is touched
     shutil.copytree(earlier, tmp_path / "out")
     before = tree(tmp_path / "out")
+    folder = (tmp_path / "out").stat().st_mtime_ns
     proc = cli_run("-o", str(tmp_path / "out" / "c.exr"), *option)
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("daskrad: error:"), proc.stderr
     assert option[1] in lines[0]          # the bad value is named
     assert tree(tmp_path / "out") == before
+    if option[0] != "--element-size":     # a size needs the scene: checked once it is loaded
+        # nothing was even made and removed there (the outputs' writability probe, the lock)
+        assert (tmp_path / "out").stat().st_mtime_ns == folder
 
 
 @pytest.mark.parametrize("kind", ["directory", "file", "symlink"])
