@@ -133,7 +133,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(prog="bench_store", description=__doc__.split("\n")[0])
     parser.add_argument("--scene", type=Path, default=CORNELL)
     parser.add_argument("--element-size", type=float, default=7.0)
-    parser.add_argument("--repeat", type=int, default=7)
+    parser.add_argument("--repeat", type=int, default=8, help="passes (even: ABBA balanced)")
     parser.add_argument("--blobs", action="store_true",
                         help="the task contexts' blobs, chunk by chunk against joined")
     parser.add_argument("--put", type=Path, help=argparse.SUPPRESS)   # one --blobs pass

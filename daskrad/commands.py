@@ -49,7 +49,7 @@ def resume_hint(output: str) -> str:
 
 
 def run_command(args) -> None:
-    settings = settings_from_args(args).validate()   # a bad option before the heavy imports
+    settings = settings_from_args(args).validate()   # a bad option before Dask and zarr load
     from daskrad import warmup
     from daskrad.run import run
 
@@ -57,15 +57,12 @@ def run_command(args) -> None:
     try:        # a Ctrl-C from here on says what it leaves, even before the run starts
         if not warmup.is_warm():
             # bad input is still one line and exit 2, before any compiling is announced
-            from daskrad.output import Outputs
-
-            settings.validate()
-            Outputs.of(output)
             from daskrad.distributed import check_scheduler
+            from daskrad.output import Outputs
             from daskrad.preprocess import check_size
 
-            check_scheduler(settings)
-
+            check_scheduler(settings)       # as run() does: before the outputs' probe
+            Outputs.of(output)
             check_size(load_scene(args.scene, args.config, args.camera), settings)
             warmup.announce()
             warmup.warmup(verbose=False)

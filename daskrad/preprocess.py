@@ -74,7 +74,7 @@ def occluders(scene: Scene, cells_for: int) -> Occluders:
     tolerance, ``grid.eps``, is absolute). The polygons are fewer and larger (RenderPark's
     office: 53,460 triangles against 154,495), so a cell holds a polygon instead of its
     elements: the per-pixel pass's shadow rays and the direct pass's windows
-    (``bench_perpixel``, ``bench_arealight``; the README has the figures) find their
+    (``bench_perpixel``, ``bench_arealight``; docs/benchmarks.md has the figures) find their
     occluders faster, with the same shadows to the rays' and the raster's precision. The
     geometry never changes with refinement, so a refined mesh keeps its occluders.
 

@@ -778,7 +778,7 @@ def shadow_grid(ctx: RenderContext) -> Grid:
 
 #: The per-pixel pass's shadow rays walk the grid over the scene's polygons
 #: (:func:`daskrad.preprocess.occluders`) instead of the grid over the elements
-#: (``bench_perpixel``; the README has its figures; ``False`` is the benchmark's reference
+#: (``bench_perpixel``; docs/benchmarks.md has its figures; ``False`` is the benchmark's reference
 #: arm).
 POLYGON_OCCLUDERS = True
 

@@ -557,6 +557,24 @@ def test_a_blob_with_zeros_before_between_and_after_its_parts(tmp_path, rng, chu
     assert g["streamed"].chunks == (chunk,) and g["streamed"].metadata.dimension_names == (
         "byte",)
 
+
+def test_a_blob_in_a_store_in_memory_keeps_every_chunk(rng):
+    # zarr hands a whole chunk's buffer to the store without a copy, and a store in memory
+    # keeps it: each chunk must be an array of its own
+    import zarr
+    from zarr.storage import MemoryStore
+
+    from daskrad.distributed import store as st
+
+    a = rng.integers(0, 255, 1000, dtype=np.uint8)
+    g = zarr.open_group(MemoryStore(), mode="w")
+    st.write_blob(g, "b", [(0, a)], 1000, chunk=100)
+    np.testing.assert_array_equal(g["b"][...], a)
+    assert g["b"].attrs["sha256"] == st.sha256(a)
+    st.write_blob(g, "empty", [], 0, chunk=1)
+    assert g["empty"].shape == (0,) and g["empty"].attrs["sha256"] == st.sha256(
+        np.zeros(0, np.uint8))
+
 # --- 5. feedback ---------------------------------------------------------------------------------
 
 def test_the_report_names_sizes_versions_camera_store_and_every_warning(tmp_path, capsys):
