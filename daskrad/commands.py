@@ -170,15 +170,17 @@ def render_command(args) -> None:
     from daskrad.progress import Heartbeat
     from daskrad.render import pixels
 
-    outputs = Outputs.of(args.output)
+    # the store and the options first (reading only), then the outputs, whose check probes
+    # their folder with a file of its own
     result = Result(args.store)
-    if Path(args.store).absolute() in outputs.exr.absolute().parents:
+    if Path(args.store).absolute() in Path(args.output).absolute().parents:
         raise OptionError("the image must be written outside the store", args.output)
     ctx = result.render_context()
     cam = _camera_of(args, ctx.camera)
     spp = args.spp or ctx.spp
     edge_spp = ctx.edge_spp if args.edge_spp is None else args.edge_spp
     Settings(width=cam.width, height=cam.height, spp=spp, edge_spp=edge_spp).validate()
+    outputs = Outputs.of(args.output)
     t = time.perf_counter()
     # the view's junction gather and tiles on every core, as an in-process run renders
     ex = InProcess()

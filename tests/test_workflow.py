@@ -379,9 +379,17 @@ def test_earlier_results_and_exports_of_daskrad_are_replaced_foreign_ones_refuse
 
 def test_render_refuses_bad_cameras_and_unfinished_stores(straight, tmp_path, capsys):
     store = straight.with_suffix(".zarr")
-    code, _, err = daskrad(capsys, "render", store, "-o", tmp_path / "v.exr", "--eye",
+    views = tmp_path / "views"
+    views.mkdir()
+    folder = views.stat().st_mtime_ns
+    code, _, err = daskrad(capsys, "render", store, "-o", views / "v.exr", "--eye",
                            "278,273,0", "--look-at", "278,273,0")
     one_line_error(code, err, "same point")
+    code, _, err = daskrad(capsys, "render", store, "-o", views / "v.exr", "--width", "100000",
+                           "--height", "100000")
+    one_line_error(code, err, "--width")
+    # refused before the outputs' check probed their folder: nothing made there, nor removed
+    assert views.stat().st_mtime_ns == folder and not any(views.iterdir())
     for fov in ("200", "0", "180"):       # the same words either side of the range
         with pytest.raises(SystemExit) as stop:     # argparse's: exit 2 after its line
             daskrad(capsys, "render", store, "-o", tmp_path / "v.exr", "--fov", fov)
