@@ -778,8 +778,8 @@ def shadow_grid(ctx: RenderContext) -> Grid:
 
 #: The per-pixel pass's shadow rays walk the grid over the scene's polygons
 #: (:func:`daskrad.preprocess.occluders`) instead of the grid over the elements
-#: (``bench_perpixel``; docs/benchmarks.md has its figures; ``False`` is the benchmark's reference
-#: arm).
+#: (``bench_perpixel``; docs/benchmarks.md has its figures; ``False`` is the benchmark's
+#: reference arm).
 POLYGON_OCCLUDERS = True
 
 #: Each area light's shadow rays in a tile try the triangle that blocked the light's last ray
