@@ -102,7 +102,7 @@ def _run(scene_path, outputs, settings, progress, config, resume, executor, came
         began = True
         resumed_from = begin.iteration if resume else None    # the solve may update begin
         if resume and progress:         # before the bar, which draws its line at once
-            output.note(f"resuming from shot {begin.iteration}" if begin.iteration else
+            output.note(f"resuming from shot {begin.iteration:,}" if begin.iteration else
                         "resuming: the store holds no shot yet, so the solve starts afresh")
         bar = Bar(settings.tolerance, enabled=progress, heartbeat=beat)
         watch = Watch(store, ex, settings, mesh.hierarchy, str(scene.path),

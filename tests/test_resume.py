@@ -173,7 +173,7 @@ def test_resume_of_a_finished_run_shoots_nothing_more(uninterrupted, tmp_path, c
     report = run(CORNELL, out, SETTINGS, progress=True, resume=True)
     assert report["iterations"] == SETTINGS.max_iterations
     # a resume says where it continues from (not under -q, progress=False)
-    assert f"daskrad: resuming from shot {SETTINGS.max_iterations}\n" in capsys.readouterr().err
+    assert f"daskrad: resuming from shot {SETTINGS.max_iterations:,}\n" in capsys.readouterr().err
     np.testing.assert_array_equal(read_exr(out), read_exr(uninterrupted))
 
 

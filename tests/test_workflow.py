@@ -613,6 +613,12 @@ def test_the_report_names_sizes_versions_camera_store_and_every_warning(tmp_path
     assert bright > plain
 
 
+def test_a_tolerance_of_zero_shoots_max_iterations_times(tmp_path, capsys):
+    # the README's "in [0, 1); 0 shoots --max-iterations times": the command line takes 0 too
+    report = solve(capsys, tmp_path / "zero.exr", "--tolerance", "0", "--max-iterations", "24")
+    assert report["iterations"] == 24 and not report["converged"]
+
+
 def test_automatic_sizes_are_reported_as_resolved(tmp_path, capsys):
     out = tmp_path / "auto.exr"
     code, _, err = daskrad(capsys, "run", SCENE, "-o", out, "--width", "32", "--height", "32",
